@@ -1,0 +1,72 @@
+"""Isolation of concurrent fleets and test runs on one machine.
+
+A ROS domain id is reserved by holding an exclusive lock on a file named after it, so two test
+sessions running in parallel never share a domain, and a crashed holder frees its domain (the
+kernel drops the lock).  Zenoh ports come from the kernel (bind to port 0).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import random
+import socket
+import tempfile
+from pathlib import Path
+
+# FastDDS maps domain ids to UDP ports; 0..232 is the valid range.  We stay clear of 0 (the
+# default everyone uses) and of the low ids people pick by hand.
+_DOMAIN_RANGE = range(100, 233)
+_LOCK_DIR = Path(tempfile.gettempdir()) / "fleet-domain-locks"
+
+
+class DomainReservation:
+    """An exclusively held ROS_DOMAIN_ID; release() (or process exit) frees it."""
+
+    def __init__(self, domain_id: int, lock_file):
+        self.domain_id = domain_id
+        self._lock_file = lock_file
+
+    def release(self) -> None:
+        if self._lock_file is not None:
+            self._lock_file.close()
+            self._lock_file = None
+
+    def __enter__(self) -> "DomainReservation":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def reserve_domain_id() -> DomainReservation:
+    _LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    candidates = list(_DOMAIN_RANGE)
+    random.shuffle(candidates)
+    for domain_id in candidates:
+        lock_file = open(_LOCK_DIR / f"{domain_id}.lock", "a")
+        try:
+            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock_file.close()
+            continue
+        return DomainReservation(domain_id, lock_file)
+    raise RuntimeError(f"no free ROS domain id in {_DOMAIN_RANGE.start}..{_DOMAIN_RANGE.stop - 1}")
+
+
+def free_tcp_port(host: str = "127.0.0.1") -> int:
+    """A TCP port the kernel says is free now (small race window; callers retry on bind failure)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind((host, 0))
+        return sock.getsockname()[1]
+
+
+def ros_environment(domain_id: int, base: dict[str, str] | None = None) -> dict[str, str]:
+    """An environment for ROS processes confined to one domain on this host."""
+    env = dict(os.environ if base is None else base)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy, conflicts with the range
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env["PYTHONUNBUFFERED"] = "1"
+    return env

@@ -1,0 +1,1 @@
+"""pytest plugin for multi-robot integration tests (fixtures land with issue 6)."""

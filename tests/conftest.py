@@ -1,0 +1,53 @@
+"""Shared fixtures: every test gets its own ROS domain and leaves no process behind."""
+
+from __future__ import annotations
+
+import os
+import sys
+import uuid
+from pathlib import Path
+
+import pytest
+
+from fleet.testing.isolation import reserve_domain_id, ros_environment
+from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
+
+REPO = Path(__file__).resolve().parent.parent
+FLEETS = REPO / "fleets"
+TEMPLATES = REPO / "templates"
+PYTHON = sys.executable
+
+
+@pytest.fixture(autouse=True)
+def _reap_processes(request):
+    """Mark every process this test starts; kill the ones still alive when it ends."""
+    marker = f"{uuid.uuid4().hex[:12]}-{request.node.name[:40]}"
+    previous = os.environ.get(MARKER_VARIABLE)
+    os.environ[MARKER_VARIABLE] = marker
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(MARKER_VARIABLE, None)
+        else:
+            os.environ[MARKER_VARIABLE] = previous
+        leftovers = processes_marked(marker)
+        if leftovers:
+            terminate(leftovers)
+
+
+@pytest.fixture
+def ros_domain():
+    """A ROS domain id reserved for this test only."""
+    with reserve_domain_id() as reservation:
+        yield reservation.domain_id
+
+
+@pytest.fixture
+def ros_env(ros_domain, monkeypatch):
+    """Environment (also applied to os.environ) confining ROS traffic to this test's domain."""
+    env = ros_environment(ros_domain)
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION"):
+        monkeypatch.setenv(key, env[key])
+    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+    return env
