@@ -23,6 +23,14 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
+@app.callback()
+def _fleet() -> None:
+    """Multi-robot fleet orchestrator for ROS 2 Jazzy.
+
+    Typical flow: fleet render SPEC (see what a spec expands to), fleet deploy SPEC, fleet status.
+    """
+
+
 for _module in (render_cmd, run_cmd, control_cmd, world_cmd):
     _module.register(app)
 

@@ -1,7 +1,76 @@
-"""(being written)"""
+"""`fleet render`: expand a fleet spec into launch files and parameter files (pure, no network)."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Optional
 
 import typer
 
 
+class Format(str, Enum):
+    yaml = "yaml"
+    py = "py"
+    both = "both"
+
+
+SET_HELP = "Override a parameter: ROBOT.NODE.PARAM=VALUE (value parsed as YAML; repeatable)."
+
+
 def register(app: typer.Typer) -> None:
-    pass
+    app.command("render")(render)
+
+
+def render(
+    spec: Path = typer.Argument(..., help="Fleet spec file, e.g. fleets/two_robots.yaml."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write launch and parameter files here."),
+    format: Format = typer.Option(Format.both, "--format", help="Launch file format to write: yaml, py or both."),
+    set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    explain: Optional[str] = typer.Option(None, "--explain", help="Show the layers of ROBOT.NODE.PARAM."),
+    json: bool = typer.Option(False, "--json", help="Print machine-readable JSON instead of tables."),
+) -> None:
+    """Expand SPEC into per-robot namespaced launch descriptions and parameter files.
+
+    Without -o, print what would be deployed: robots, agents, nodes and effective parameters.
+    """
+    from fleet.cli.output import console, print_json
+    from fleet.cli.plan_view import explain_data, plan_data, print_explain, print_plan
+
+    expansion = load_and_expand(spec, set_)
+    if explain is not None:
+        data = explain_data(expansion, explain)
+        print_json(data) if json else print_explain(data, console())
+        return
+    if output is None:
+        print_json(plan_data(expansion)) if json else print_plan(expansion, console())
+        return
+    written = write_bundles(expansion, output, format.value)
+    if json:
+        print_json({"output": str(output), "files": [str(path) for path in written]})
+    else:
+        out = console()
+        for warning in expansion.warnings:
+            out.print(f"[yellow]warning:[/yellow] {warning}")
+        out.print(f"wrote {len(written)} files for {len(expansion.robots)} robots"
+                  + (" and the world" if expansion.bundle("world") else "") + f" to {output}/")
+
+
+def load_and_expand(spec: Path, sets: list[str]):
+    """Validate and expand; every problem raises before anything is written or sent."""
+    from fleet.expand import expand_fleet
+    from fleet.spec import load_spec
+
+    return expand_fleet(load_spec(spec), sets)
+
+
+def write_bundles(expansion, output: Path, format: str) -> list[Path]:
+    """Write every bundle into output/<unit>/, leaving out the launch format not asked for."""
+    left_out = {"yaml": ".launch.py", "py": ".launch.yaml", "both": None}[format]
+    written = []
+    for bundle in expansion.bundles:
+        names = {name for name in bundle.files if left_out is None or not name.endswith(left_out)}
+        directory = output / bundle.name
+        bundle.write(directory, names)
+        written += [directory / name for name in sorted(names)]
+    return written

@@ -1,0 +1,109 @@
+"""What a deploy would run, as data (--json) and as rich tables: used by render and deploy --dry-run."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fleet.expand import Expansion
+from fleet.expand.parameters import Setting
+
+
+def plan_data(expansion: Expansion) -> dict[str, Any]:
+    spec = expansion.spec
+    world = expansion.bundle("world")
+    robots = []
+    for plan in expansion.robots:
+        effective = plan.parameters
+        parameters: dict[str, dict[str, Any]] = {}
+        for (node, name), settings in effective.history.items():
+            parameters.setdefault(node, {})[name] = {"value": settings[-1].value, "from": settings[-1].layer}
+        robots.append({
+            "name": plan.name, "agent": plan.agent, "namespace": plan.namespace, "template": plan.template,
+            "isolation": plan.isolation, "model": plan.model.model_dump(), "pose": plan.pose,
+            "launch_args": plan.launch_args,
+            "nodes": [{"name": node.name, "fqn": node.fqn, "package": node.package, "executable": node.executable,
+                       "conditional": node.conditional} for node in plan.outline.nodes],
+            "parameters": parameters,
+            "digest": expansion.bundle(plan.name).digest,
+        })
+    return {
+        "fleet": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time,
+        "agents": {name: {"description": agent.description, "units": [b.name for b in expansion.for_agent(name)]}
+                   for name, agent in spec.agents.items()},
+        "world": None if world is None else {"agent": world.agent, "obstacles": len(spec.world.obstacles),
+                                             "digest": world.digest},
+        "robots": robots,
+        "warnings": expansion.warnings,
+    }
+
+
+def print_plan(expansion: Expansion, console) -> None:
+    from rich.table import Table
+
+    data = plan_data(expansion)
+    console.print(f"[bold]fleet {data['fleet']}[/bold]  ROS_DOMAIN_ID={data['domain_id']}  "
+                  f"use_sim_time={str(data['use_sim_time']).lower()}  "
+                  + (f"world on agent {data['world']['agent']} ({data['world']['obstacles']} obstacles)"
+                     if data["world"] else "no world"))
+    robots = Table(title="Robots", title_justify="left")
+    for column in ("ROBOT", "AGENT", "NAMESPACE", "TEMPLATE", "NODES", "MODEL", "POSE (x, y, yaw)"):
+        robots.add_column(column)
+    for robot in data["robots"]:
+        nodes = ", ".join(node["name"] + ("?" if node["conditional"] else "") for node in robot["nodes"])
+        pose = robot["pose"]
+        robots.add_row(robot["name"], robot["agent"], robot["namespace"], robot["template"], nodes,
+                       robot["model"]["type"], f"{pose['x']:.2f}, {pose['y']:.2f}, {pose['yaw']:.2f}")
+    console.print(robots)
+    console.print("[dim]? = started only when its launch condition holds (e.g. enable_safety)[/dim]")
+    parameters = Table(title="Effective parameters", title_justify="left")
+    for column in ("ROBOT", "NODE", "PARAMETER", "VALUE", "FROM"):
+        parameters.add_column(column)
+    for robot in data["robots"]:
+        for node, values in robot["parameters"].items():
+            for name, entry in values.items():
+                style = "" if entry["from"] == "template" else "bold"
+                parameters.add_row(robot["name"], node, name, format_value(entry["value"]), entry["from"], style=style)
+    console.print(parameters)
+    for warning in data["warnings"]:
+        console.print(f"[yellow]warning:[/yellow] {warning}")
+
+
+def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:
+    from fleet.errors import Location, SpecError
+
+    robot_name, _, rest = key.partition(".")
+    node, _, name = rest.partition(".")
+    plan = expansion.robot(robot_name)
+    if plan is None or not node or not name:
+        raise SpecError(f"expected ROBOT.NODE.PARAMETER of a robot in the spec "
+                        f"(robots: {', '.join(r.name for r in expansion.robots)})", Location(f"--explain {key}"))
+    settings: list[Setting] = plan.parameters.explain(node, name)
+    if not settings:
+        known = sorted({n for (nd, n) in plan.parameters.history if nd == node})
+        raise SpecError(f"{robot_name}.{node} has no parameter {name!r} in any layer"
+                        + (f" (parameters: {', '.join(known)})" if known else f" (no node {node!r})"),
+                        Location(f"--explain {key}"))
+    return {"parameter": key, "value": settings[-1].value,
+            "layers": [{"layer": s.layer, "value": s.value, "source": s.source, "effective": i == len(settings) - 1}
+                       for i, s in enumerate(settings)]}
+
+
+def print_explain(data: dict[str, Any], console) -> None:
+    from rich.table import Table
+
+    table = Table(title=f"{data['parameter']} = {format_value(data['value'])}", title_justify="left")
+    for column in ("LAYER", "VALUE", "SOURCE", ""):
+        table.add_column(column)
+    for layer in data["layers"]:
+        table.add_row(layer["layer"], format_value(layer["value"]), layer["source"],
+                      "effective" if layer["effective"] else "overridden",
+                      style="bold" if layer["effective"] else "dim")
+    console.print(table)
+
+
+def format_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, list):
+        return "[" + ", ".join(format_value(v) for v in value) + "]"
+    return str(value)

@@ -1,0 +1,59 @@
+"""A Bundle: everything one unit (a robot, or the world) needs to run, as flat files."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Literal, Mapping
+
+
+@dataclass(frozen=True)
+class Bundle:
+    name: str  # robot name, or "world"
+    kind: Literal["robot", "world"]
+    agent: str
+    entry: str  # the launch file to run, e.g. "robot1.launch.yaml"
+    files: Mapping[str, str]  # flat file name -> text
+    options: Mapping[str, str] = field(default_factory=dict)  # e.g. {"isolation": "process"}
+    hot_files: frozenset[str] = frozenset()  # applied in place on change, without a restart
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "files", MappingProxyType(dict(self.files)))
+        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+
+    @property
+    def digest(self) -> str:
+        """Equal digests mean the running unit needs no restart (hot files are left out)."""
+        cold = {name: text for name, text in sorted(self.files.items()) if name not in self.hot_files}
+        payload = json.dumps({"entry": self.entry, "options": dict(sorted(self.options.items())), "files": cold},
+                             sort_keys=True)
+        return hashlib.sha256(payload.encode()).hexdigest()
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "kind": self.kind, "agent": self.agent, "entry": self.entry,
+                "files": dict(self.files), "options": dict(self.options), "hot_files": sorted(self.hot_files),
+                "digest": self.digest}
+
+    def write(self, directory: Path, names: set[str] | None = None) -> None:
+        """Write the files (or only `names`) into `directory`, each atomically."""
+        directory.mkdir(parents=True, exist_ok=True)
+        for name, text in self.files.items():
+            if names is None or name in names:
+                write_atomic(directory / name, text)
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write through a temporary file and rename, so readers never see half a file."""
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

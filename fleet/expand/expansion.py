@@ -1,0 +1,286 @@
+"""Expand a FleetSpec into Bundles: one per robot (launch files + params file), one for the world.
+
+Pure: reads templates, writes nothing.  Every problem is raised before any output exists, so a
+failed `fleet render` or `fleet deploy` leaves nothing half-written or half-deployed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from fleet.errors import Location, SpecError, TemplateError
+from fleet.expand.bundle import Bundle
+from fleet.expand.outline import LaunchOutline, outline
+from fleet.expand.parameters import ParameterLayers, check_type_stable, parse_override
+from fleet.expand.python_launch import python_launch_source
+from fleet.expand.templating import TemplateSet, builtin_template_dirs
+from fleet.spec.model import FleetSpec, Model, Robot
+from fleet.spec.params import unflatten
+from fleet.spec.yaml_source import SourceMap, load_yaml
+
+WORLD = "world"
+WORLD_TEMPLATE = "world"
+
+
+@dataclass
+class RobotPlan:
+    """What one robot will run, for tables, --explain and the bundle."""
+
+    name: str
+    namespace: str
+    agent: str
+    template: str
+    isolation: str
+    model: Model
+    pose: dict[str, float]
+    outline: LaunchOutline
+    parameters: ParameterLayers
+    launch_args: dict[str, str]
+    launch_text: str  # the rendered .launch.yaml
+    launch: dict  # the same, parsed
+
+
+@dataclass
+class Expansion:
+    spec: FleetSpec
+    robots: list[RobotPlan]
+    bundles: list[Bundle]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def fleet(self) -> str:
+        return self.spec.fleet
+
+    @property
+    def domain_id(self) -> int:
+        return self.spec.ros.domain_id
+
+    def for_agent(self, agent: str) -> list[Bundle]:
+        return [bundle for bundle in self.bundles if bundle.agent == agent]
+
+    def bundle(self, name: str) -> Bundle | None:
+        return next((bundle for bundle in self.bundles if bundle.name == name), None)
+
+    def robot(self, name: str) -> RobotPlan | None:
+        return next((robot for robot in self.robots if robot.name == name), None)
+
+
+def template_set_for(spec: FleetSpec) -> TemplateSet:
+    directories = []
+    if spec.templates is not None:
+        directories.append((Path(spec.source_file).parent / spec.templates).resolve())
+        if not directories[0].is_dir():
+            raise SpecError(f"templates directory {directories[0]} does not exist", Location(spec.source_file))
+    return TemplateSet(directories + builtin_template_dirs())
+
+
+def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Expansion:
+    templates = template_set_for(spec)
+    overrides = [parse_override(text) for text in sets]
+    defaults: dict[str, tuple] = {}  # per template, loaded once
+    robots = [_plan_robot(spec, index, robot, templates, defaults) for index, robot in enumerate(spec.robots)]
+    _apply_overrides(spec, robots, overrides)
+    _check_default_nodes(spec, robots)
+    warnings: list[str] = []
+    for plan in robots:
+        check_type_stable(plan.parameters, plan.name)
+        warnings += plan.parameters.unknown_to_template(defaults[plan.template][0])
+    bundles = [_robot_bundle(spec, plan) for plan in robots]
+    if spec.world is not None:
+        bundles.append(_world_bundle(spec, templates))
+    return Expansion(spec=spec, robots=robots, bundles=bundles, warnings=sorted(set(warnings)))
+
+
+def _plan_robot(spec: FleetSpec, index: int, robot: Robot, templates: TemplateSet,
+                defaults_cache: dict[str, tuple]) -> RobotPlan:
+    template = robot.template or spec.defaults.template
+    namespace = robot.namespace or f"/{robot.name}"
+    arguments = {**spec.defaults.launch_args, **robot.launch_args}
+    context = {
+        "robot": {"name": robot.name, "namespace": namespace, "agent": robot.agent or spec.defaults.agent,
+                  "model": _model_of(spec, robot).model_dump(), "pose": robot.pose.model_dump()},
+        "fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time},
+        "params_file": f"$(dirname)/{robot.name}.params.yaml",
+    }
+    where = _spec_location(spec, ("robots", index, "template") if robot.template else ("robots", index, "name"))
+    rendered = templates.render(template, context, arguments, where)
+    launch = _parse_rendered(rendered.text, rendered.template_file, robot.name)
+    shape = outline(launch, Location(rendered.template_file))
+    unknown = sorted(set(arguments) - set(shape.arguments))
+    if unknown:
+        in_robot = unknown[0] in robot.launch_args
+        path = ("robots", index, "launch_args", unknown[0]) if in_robot else ("defaults", "launch_args", unknown[0])
+        raise SpecError(f"template {template!r} declares no launch argument {unknown[0]!r} "
+                        f"(arguments: {', '.join(shape.arguments) or 'none'})", _spec_location(spec, path))
+    layers = ParameterLayers()
+    if template not in defaults_cache:
+        defaults_cache[template] = _template_defaults(templates, template)
+    defaults, defaults_file, defaults_source = defaults_cache[template]
+    node_names = {node.name for node in shape.nodes}
+    for node, values in defaults.items():
+        if node not in node_names:
+            raise TemplateError(f"defaults for node {node!r}, which template {template!r} does not start "
+                                f"(nodes: {', '.join(sorted(node_names))})", Location(defaults_file))
+        layers.add(node, values, "template", lambda key, node=node: str(defaults_source.locate((node,) + key)))
+    for node, values in spec.defaults.parameters.items():
+        if node in node_names:
+            layers.add(node, values, "defaults", lambda key, node=node: spec.where("defaults", "parameters", node, *key))
+    for node, values in robot.parameters.items():
+        if node not in node_names:
+            raise SpecError(f"robot {robot.name}: template {template!r} starts no node {node!r} "
+                            f"(nodes: {', '.join(sorted(node_names))})",
+                            _spec_location(spec, ("robots", index, "parameters", node)))
+        layers.add(node, values, "robot", lambda key, node=node: spec.where("robots", index, "parameters", node, *key))
+    return RobotPlan(name=robot.name, namespace=namespace, agent=robot.agent or spec.defaults.agent,
+                     template=template, isolation=robot.isolation or spec.defaults.isolation,
+                     model=_model_of(spec, robot), pose=robot.pose.model_dump(), outline=shape,
+                     parameters=layers, launch_args={k: str(v) for k, v in arguments.items()},
+                     launch_text=rendered.text, launch=launch)
+
+
+def _spec_location(spec: FleetSpec, path: tuple) -> Location:
+    if spec._source_map is None:
+        return Location(spec.source_file)
+    return spec._source_map.locate(path, key=True)
+
+
+def _parse_rendered(text: str, template_file: Path, unit: str) -> Any:
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        line = f" at line {mark.line + 1} of its output" if mark else ""
+        raise TemplateError(f"rendered invalid YAML for {unit}{line}: {getattr(error, 'problem', error)}",
+                            Location(template_file)) from None
+
+
+def _template_defaults(templates: TemplateSet, template: str) -> tuple[dict, Path | None, SourceMap | None]:
+    path = templates.defaults_file(template)
+    if path is None:
+        return {}, None, None
+    data, source = load_yaml(path.read_text(encoding="utf-8"), path)
+    if data is None:
+        return {}, path, source
+    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
+        raise TemplateError("parameter defaults must map node names to parameter mappings", Location(path, 1))
+    from fleet.spec.load import check_parameters
+
+    check_parameters(data, (), source)
+    return data, path, source
+
+
+def _apply_overrides(spec: FleetSpec, robots: list[RobotPlan], overrides: list) -> None:
+    by_name = {plan.name: plan for plan in robots}
+    for override in overrides:
+        where = Location(f"--set {override.text}")
+        plan = by_name.get(override.robot)
+        if plan is None:
+            raise SpecError(f"no robot {override.robot!r} in {spec.source_file} (robots: {', '.join(by_name)})", where)
+        nodes = sorted({node.name for node in plan.outline.nodes})
+        if override.node not in nodes:
+            raise SpecError(f"robot {plan.name} has no node {override.node!r} (nodes: {', '.join(nodes)})", where)
+        plan.parameters.set(override.node, override.parameter, override.value, "--set", f"--set {override.text}")
+
+
+def _check_default_nodes(spec: FleetSpec, robots: list[RobotPlan]) -> None:
+    all_nodes = {node.name for plan in robots for node in plan.outline.nodes}
+    for node in spec.defaults.parameters:
+        if node not in all_nodes:
+            raise SpecError(f"defaults.parameters: no robot's template starts a node {node!r} "
+                            f"(nodes: {', '.join(sorted(all_nodes))})",
+                            _spec_location(spec, ("defaults", "parameters", node)))
+
+
+def _model_of(spec: FleetSpec, robot: Robot) -> Model:
+    changes = robot.model.model_dump(exclude_none=True)
+    return spec.defaults.model.model_copy(update=changes)
+
+
+def _robot_bundle(spec: FleetSpec, plan: RobotPlan) -> Bundle:
+    comment = (f"Launch description of robot {plan.name} in fleet {spec.fleet}, generated by fleet from template "
+               f"{plan.template}.\nRun it with `ros2 launch <this file>`.")
+    files = {
+        f"{plan.name}.launch.yaml": plan.launch_text,
+        f"{plan.name}.launch.py": python_launch_source(plan.launch, comment),
+        f"{plan.name}.params.yaml": params_file_text(spec, plan),
+    }
+    return Bundle(name=plan.name, kind="robot", agent=plan.agent, entry=f"{plan.name}.launch.yaml", files=files,
+                  options={"isolation": plan.isolation})
+
+
+def params_file_text(spec: FleetSpec, plan: RobotPlan) -> str:
+    """One fully-qualified section per node: /robot1/controller: {ros__parameters: {...}}."""
+    effective = plan.parameters.effective()
+    sections = {}
+    for node in plan.outline.nodes:
+        if node.fqn in sections:
+            continue
+        sections[node.fqn] = {"ros__parameters": unflatten(effective.get(node.name, {}))}
+    header = (f"# Parameters of robot {plan.name} in fleet {spec.fleet}, generated by fleet.\n"
+              f"# Layers, lowest first: template {plan.template} < spec defaults < robot < --set.\n"
+              f"# See where a value comes from: fleet render SPEC --explain {plan.name}.NODE.PARAMETER\n")
+    return header + dump_yaml(sections)
+
+
+class _ReadableDumper(yaml.SafeDumper):
+    """Block style, but lists of scalars in flow style: `waypoints: [1.0, 0.0, ...]` on one line."""
+
+
+_ReadableDumper.add_representer(list, lambda dumper, data: dumper.represent_sequence(
+    "tag:yaml.org,2002:seq", data, flow_style=not any(isinstance(item, (dict, list)) for item in data)))
+
+
+def dump_yaml(data: Any) -> str:
+    return yaml.dump(data, Dumper=_ReadableDumper, sort_keys=False, default_flow_style=False, width=1000,
+                     allow_unicode=False)
+
+
+def world_description(spec: FleetSpec) -> dict[str, Any]:
+    """The data of world.yaml (schema in docs/architecture.md)."""
+    assert spec.world is not None
+    world = spec.world
+    robots = []
+    for robot in spec.robots:
+        if not robot.simulated:
+            continue
+        lidar = robot.lidar or spec.defaults.lidar
+        robots.append({
+            "name": robot.name,
+            "namespace": robot.namespace or f"/{robot.name}",
+            "model": _model_of(spec, robot).model_dump(),
+            "pose": robot.pose.model_dump(),
+            "lidar": lidar.model_dump(),
+            "odom_rate": world.odom_rate,
+            "cmd_timeout": world.cmd_timeout,
+            "ground_truth": True,
+        })
+    obstacles = []
+    for obstacle in world.obstacles:
+        entry = {"name": obstacle.name, "type": obstacle.type, "position": list(obstacle.position), "yaw": obstacle.yaw}
+        if obstacle.type == "cylinder":
+            entry.update(radius=obstacle.radius, height=obstacle.height)
+        else:
+            entry["size"] = list(obstacle.size)
+        obstacles.append(entry)
+    return {"fleet": spec.fleet, "physics_rate": world.physics_rate, "real_time": world.real_time,
+            "clock_rate": world.clock_rate, "obstacles": obstacles, "robots": robots}
+
+
+def _world_bundle(spec: FleetSpec, templates: TemplateSet) -> Bundle:
+    context = {"fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time}}
+    rendered = templates.render(WORLD_TEMPLATE, context, {}, Location(spec.source_file))
+    launch = _parse_rendered(rendered.text, rendered.template_file, WORLD)
+    outline(launch, Location(rendered.template_file))
+    header = f"# The shared world of fleet {spec.fleet}, generated by fleet. Robots join and leave as this file changes.\n"
+    files = {
+        "world.launch.yaml": rendered.text,
+        "world.launch.py": python_launch_source(launch, f"The shared world of fleet {spec.fleet}, generated by fleet."),
+        "world.yaml": header + dump_yaml(world_description(spec)),
+    }
+    agent = spec.world.agent or spec.defaults.agent
+    return Bundle(name=WORLD, kind="world", agent=agent, entry="world.launch.yaml", files=files,
+                  options={"isolation": "process"}, hot_files=frozenset({"world.yaml"}))

@@ -1,0 +1,109 @@
+"""Merging a robot's parameters from their layers, remembering where each value came from.
+
+Precedence, lowest first: the template's node defaults < the spec's `defaults.parameters` <
+the robot's own `parameters` < `--set robot.node.param=value`.  We merge here, in Python, and
+write one fully-qualified section per node, rather than relying on wildcard precedence inside
+rcl (in Jazzy the last matching key applied wins, not the most specific).
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from fleet.errors import Location, SpecError
+from fleet.spec.params import coerce_like, flatten, normalize, value_problem
+from fleet.spec.yaml_source import parse_scalar
+
+LAYERS = ("template", "defaults", "robot", "--set")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One value of one parameter in one layer."""
+
+    value: Any
+    layer: str  # one of LAYERS
+    source: str  # file:line or the --set argument
+
+
+@dataclass(frozen=True)
+class Override:
+    """A parsed `--set robot.node.param=value`."""
+
+    robot: str
+    node: str
+    parameter: str
+    value: Any
+    text: str
+
+
+def parse_override(text: str) -> Override:
+    where = Location(f"--set {text}")
+    key, equals, raw = text.partition("=")
+    parts = key.strip().split(".", 2)
+    if not equals or len(parts) < 3 or not all(parts):
+        raise SpecError("expected ROBOT.NODE.PARAMETER=VALUE, e.g. robot1.controller.max_speed=0.8", where)
+    try:
+        value = parse_scalar(raw)
+    except ValueError as error:
+        raise SpecError(str(error), where) from None
+    if problem := value_problem(value):
+        raise SpecError(problem, where)
+    return Override(robot=parts[0], node=parts[1], parameter=parts[2], value=normalize(value), text=text)
+
+
+class ParameterLayers:
+    """Effective parameters of one robot, and the history of every value."""
+
+    def __init__(self) -> None:
+        self.history: dict[tuple[str, str], list[Setting]] = {}
+
+    def add(self, node: str, parameters: dict[str, Any], layer: str, source: Callable[[tuple], str]) -> None:
+        """Add a layer's values; source(key_path) says where each one is written."""
+        for name, (key_path, value) in flatten(parameters).items():
+            self.set(node, name, value, layer, source(key_path))
+
+    def set(self, node: str, name: str, value: Any, layer: str, source: str) -> None:
+        settings = self.history.setdefault((node, name), [])
+        reference = settings[0].value if settings else None
+        settings.append(Setting(normalize(coerce_like(value, reference)), layer, source))
+
+    def effective(self) -> dict[str, dict[str, Any]]:
+        """node -> dotted parameter name -> winning value."""
+        result: dict[str, dict[str, Any]] = {}
+        for (node, name), settings in self.history.items():
+            result.setdefault(node, {})[name] = settings[-1].value
+        return result
+
+    def explain(self, node: str, name: str) -> list[Setting]:
+        return list(self.history.get((node, name), []))
+
+    def unknown_to_template(self, known: dict[str, dict[str, Any]]) -> list[str]:
+        """Warnings for parameters the template's defaults do not know (likely typos)."""
+        warnings = []
+        for (node, name), settings in self.history.items():
+            declared = known.get(node, {})
+            if declared and name not in declared:
+                hint = difflib.get_close_matches(name, list(declared), n=1)
+                guess = f" (did you mean {hint[0]!r}?)" if hint else ""
+                warnings.append(f"{settings[-1].source}: {node}.{name} is not a parameter of the template's "
+                                f"{node} defaults{guess}")
+        return warnings
+
+
+def check_type_stable(layers: ParameterLayers, robot: str) -> None:
+    """A layer may change a value, not its type: the node declares one type per parameter."""
+    for (node, name), settings in layers.history.items():
+        first = settings[0]
+        for later in settings[1:]:
+            if _type_name(later.value) != _type_name(first.value):
+                raise SpecError(f"robot {robot}: {node}.{name} is {_type_name(first.value)} in the {first.layer} layer "
+                                f"({first.source}) but {_type_name(later.value)} here", Location(later.source))
+
+
+def _type_name(value: Any) -> str:
+    if isinstance(value, list):
+        return f"list of {_type_name(value[0])}" if value else "list"
+    return {bool: "bool", int: "int", float: "float", str: "string"}.get(type(value), type(value).__name__)

@@ -1,0 +1,177 @@
+"""Emit a Python launch file equivalent to a rendered YAML launch description.
+
+For teams that use Python launch files: the same actions as GroupAction + PushRosNamespace +
+Node, as the ROS 2 launch tutorials write them.  Every string from the description is emitted
+with repr(), so it is a Python literal and never code.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+_SUBSTITUTION = re.compile(r"\$\(([^()]*)\)")
+
+_HEADER = '''\
+{comment}
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, GroupAction, SetEnvironmentVariable, SetLaunchConfiguration
+from launch.conditions import IfCondition, UnlessCondition
+from launch.substitutions import EnvironmentVariable, LaunchConfiguration, ThisLaunchFileDir
+from launch_ros.actions import Node, PushRosNamespace
+from launch_ros.substitutions import FindPackageShare
+
+
+def generate_launch_description():
+    return LaunchDescription(
+'''
+
+
+def python_launch_source(launch: dict, comment: str) -> str:
+    """Python source of a launch file doing what the YAML `launch` document does."""
+    comment_lines = "\n".join(f"# {line}".rstrip() for line in comment.splitlines())
+    body = _actions(launch["launch"], indent=8)
+    return _HEADER.format(comment=comment_lines) + body + "\n    )\n"
+
+
+def _actions(actions: list, indent: int) -> str:
+    pad = " " * indent
+    items = [_action(action, indent + 4) for action in actions]
+    inner = "".join(f"{' ' * (indent + 4)}{item},\n" for item in items)
+    return f"{pad}[\n{inner}{pad}]"
+
+
+def _action(action: dict, indent: int) -> str:
+    (kind, body), = action.items()
+    if kind == "group":
+        children = body if isinstance(body, list) else body.get("actions", [])
+        options = {} if isinstance(body, list) else body
+        kwargs = _condition(options)
+        scoped = options.get("scoped", True)
+        return (f"GroupAction(\n{_actions(children, indent + 4)},\n{' ' * (indent + 4)}scoped={bool(scoped)!r}"
+                f"{kwargs},\n{' ' * indent})")
+    if kind == "push_ros_namespace":
+        return f"PushRosNamespace({_expr(body['namespace'])}{_condition(body)})"
+    if kind == "arg":
+        parts = [repr(str(body["name"]))]
+        if "default" in body:
+            parts.append(f"default_value={_expr(body['default'])}")
+        if "description" in body:
+            parts.append(f"description={str(body['description'])!r}")
+        return f"DeclareLaunchArgument({', '.join(parts)}{_condition(body)})"
+    if kind == "let":
+        return f"SetLaunchConfiguration({str(body['name'])!r}, {_expr(body['value'])}{_condition(body)})"
+    if kind == "set_env":
+        return f"SetEnvironmentVariable({str(body['name'])!r}, {_expr(body['value'])}{_condition(body)})"
+    if kind == "node":
+        return _node(body, indent)
+    raise ValueError(f"no Python equivalent emitted for launch action {kind!r}")
+
+
+def _node(body: dict, indent: int) -> str:
+    pad = " " * (indent + 4)
+    lines = [f"package={_expr(body['pkg'])}", f"executable={_expr(body['exec'])}"]
+    if "name" in body:
+        lines.append(f"name={_expr(body['name'])}")
+    if "namespace" in body:
+        lines.append(f"namespace={_expr(body['namespace'])}")
+    if "output" in body:
+        lines.append(f"output={str(body['output'])!r}")
+    if "args" in body:
+        lines.append(f"arguments={_token_list(body['args'])}")
+    if "ros_args" in body:
+        lines.append(f"ros_arguments={_token_list(body['ros_args'])}")
+    parameters = _parameters(body.get("param", []))
+    if parameters:
+        lines.append(f"parameters=[{', '.join(parameters)}]")
+    if body.get("remap"):
+        pairs = ", ".join(f"({_expr(item['from'])}, {_expr(item['to'])})" for item in body["remap"])
+        lines.append(f"remappings=[{pairs}]")
+    if "respawn" in body:
+        lines.append(f"respawn={_expr(body['respawn'])}")
+    if "respawn_delay" in body:
+        lines.append(f"respawn_delay={float(body['respawn_delay'])!r}")
+    condition = _condition(body).removeprefix(", ")
+    if condition:
+        lines.append(condition)
+    inner = "".join(f"{pad}{line},\n" for line in lines)
+    return f"Node(\n{inner}{' ' * indent})"
+
+
+def _parameters(items: list) -> list[str]:
+    """Files in order, then all inline name/value pairs as one dict: what launch_ros's YAML
+    frontend builds from `param:` entries, so both files produce the same command line."""
+    files = [_expr(item["from"]) for item in items if "from" in item]
+    inline = [f"{str(item['name'])!r}: {_expr(item['value'])}" for item in items if "from" not in item]
+    if inline:
+        files.append("{" + ", ".join(inline) + "}")
+    return files
+
+
+def _condition(body: Any) -> str:
+    if not isinstance(body, dict):
+        return ""
+    if "if" in body:
+        return f", condition=IfCondition({_expr(body['if'])})"
+    if "unless" in body:
+        return f", condition=UnlessCondition({_expr(body['unless'])})"
+    return ""
+
+
+def _token_list(text: Any) -> str:
+    """A whitespace-separated argument string as a list of (substitution) tokens."""
+    return "[" + ", ".join(_expr(token) for token in split_arguments(str(text))) + "]"
+
+
+def split_arguments(text: str) -> list[str]:
+    """Split at whitespace outside $(...), as launch's frontend splits `args`/`ros_args`."""
+    tokens, current, depth = [], "", 0
+    for index, char in enumerate(text):
+        if char == "(" and text[index - 1:index] == "$":
+            depth += 1
+        elif char == ")" and depth:
+            depth -= 1
+        if char.isspace() and depth == 0:
+            if current:
+                tokens.append(current)
+            current = ""
+        else:
+            current += char
+    if current:
+        tokens.append(current)
+    return tokens
+
+
+def _expr(value: Any) -> str:
+    """A launch value as a Python expression: a literal, or a list of substitutions."""
+    if isinstance(value, bool):
+        return repr(value)
+    if isinstance(value, (int, float)):
+        return repr(str(value))
+    text = str(value)
+    parts: list[str] = []
+    position = 0
+    for match in _SUBSTITUTION.finditer(text):
+        if match.start() > position:
+            parts.append(repr(text[position:match.start()]))
+        parts.append(_substitution(match.group(1).split()))
+        position = match.end()
+    if position < len(text):
+        parts.append(repr(text[position:]))
+    if len(parts) == 1 and not _SUBSTITUTION.search(text):
+        return parts[0]
+    return "[" + ", ".join(parts) + "]" if parts else "''"
+
+
+def _substitution(words: list[str]) -> str:
+    name, arguments = words[0], words[1:]
+    if name == "var" and len(arguments) == 1:
+        return f"LaunchConfiguration({arguments[0]!r})"
+    if name == "env" and len(arguments) in (1, 2):
+        default = f", default_value={arguments[1]!r}" if len(arguments) == 2 else ""
+        return f"EnvironmentVariable({arguments[0]!r}{default})"
+    if name == "dirname" and not arguments:
+        return "ThisLaunchFileDir()"
+    if name == "find-pkg-share" and len(arguments) == 1:
+        return f"FindPackageShare({arguments[0]!r})"
+    raise ValueError(f"substitution $({' '.join(words)}) has no Python equivalent here")

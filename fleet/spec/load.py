@@ -1,0 +1,181 @@
+"""Load and validate a fleet spec: YAML -> FleetSpec, every problem reported with its place."""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from fleet.errors import Location, SpecError
+from fleet.spec.model import FleetSpec
+from fleet.spec.names import key_name_problem, namespace_problem, ros_name_problem
+from fleet.spec.params import flatten, value_problem
+from fleet.spec.yaml_source import SourceMap, load_yaml
+
+
+def load_spec(path: str | Path) -> FleetSpec:
+    """Read and validate the spec at `path`; raises SpecError naming file, line and problem."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError("no such fleet spec file", Location(path)) from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise SpecError(f"cannot read fleet spec: {error}", Location(path)) from None
+    return parse_spec(text, str(path))
+
+
+def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
+    data, source = load_yaml(text, file)
+    if not isinstance(data, dict):
+        raise SpecError("a fleet spec is a mapping with at least 'fleet' and 'robots'", Location(file, 1, 1))
+    try:
+        spec = FleetSpec.model_validate(data)
+    except ValidationError as error:
+        raise _first_problem(error, source) from None
+    spec = spec.model_copy(update={"source_file": file})
+    spec._source_map = source
+    check_spec(spec, source)
+    return spec
+
+
+def check_spec(spec: FleetSpec, source: SourceMap) -> None:
+    """Rules that span fields: names, references between sections, parameter values."""
+
+    def fail(message: str, path: tuple, key: bool = False) -> None:
+        raise SpecError(message, source.locate(path, key=key))
+
+    if problem := key_name_problem(spec.fleet):
+        fail(f"fleet name {problem}", ("fleet",))
+    for agent in spec.agents:
+        if problem := key_name_problem(agent):
+            fail(f"agent name {problem}", ("agents", agent), key=True)
+
+    def check_agent(name: str, path: tuple) -> None:
+        if name not in spec.agents:
+            fail(f"agent {name!r} is not declared under 'agents' (declared: {', '.join(spec.agents) or 'none'})", path)
+
+    if spec.world is not None and spec.world.agent is not None:
+        check_agent(spec.world.agent, ("world", "agent"))
+    if any(robot.agent is None for robot in spec.robots) or (spec.world and spec.world.agent is None):
+        check_agent(spec.defaults.agent, ("defaults", "agent"))
+
+    check_parameters(spec.defaults.parameters, ("defaults", "parameters"), source)
+    namespaces: dict[str, int] = {}
+    seen: dict[str, int] = {}
+    for index, robot in enumerate(spec.robots):
+        here = ("robots", index)
+        if problem := ros_name_problem(robot.name):
+            fail(f"robot name {problem}", here + ("name",))
+        if robot.name in seen:
+            fail(f"duplicate robot name {robot.name!r} (first defined as robots[{seen[robot.name]}])", here + ("name",))
+        seen[robot.name] = index
+        namespace = robot.namespace or f"/{robot.name}"
+        if robot.namespace is not None and (problem := namespace_problem(robot.namespace)):
+            fail(f"robot {robot.name!r}: {problem}", here + ("namespace",))
+        if namespace in namespaces:
+            fail(f"robot {robot.name!r} uses namespace {namespace} already used by robots[{namespaces[namespace]}]",
+                 here + ("namespace",) if robot.namespace else here + ("name",))
+        namespaces[namespace] = index
+        if robot.agent is not None:
+            check_agent(robot.agent, here + ("agent",))
+        check_parameters(robot.parameters, here + ("parameters",), source)
+    if spec.world is not None:
+        names: set[str] = set()
+        for index, obstacle in enumerate(spec.world.obstacles):
+            if obstacle.name in names:
+                fail(f"duplicate obstacle name {obstacle.name!r}", ("world", "obstacles", index, "name"))
+            names.add(obstacle.name)
+
+
+def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source: SourceMap) -> None:
+    """Node names are ROS names; every (nested) parameter value is one ROS can hold."""
+    for node, values in parameters.items():
+        if problem := ros_name_problem(node):
+            raise SpecError(f"node name {problem}", source.locate(path + (node,), key=True))
+        for name, (key_path, value) in flatten(values).items():
+            for token in name.split("."):
+                if problem := ros_name_problem(token):
+                    raise SpecError(f"parameter name {node}.{name}: {problem}",
+                                    source.locate(path + (node,) + key_path, key=True))
+            if problem := value_problem(value):
+                raise SpecError(f"parameter {node}.{name}: {problem}", source.locate(path + (node,) + key_path))
+
+
+def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
+    """Turn pydantic's first error into one line with the place it refers to."""
+    # A misspelt key also makes the key it should have been "missing": report the typo first.
+    problems = error.errors()
+    problem = next((p for p in problems if p["type"] == "extra_forbidden"), problems[0])
+    loc = tuple(part for part in problem["loc"] if not _is_pydantic_branch(part))
+    kind = problem["type"]
+    where = ".".join(str(p) if not isinstance(p, int) else f"[{p}]" for p in loc).replace(".[", "[")
+    if kind == "extra_forbidden":
+        unknown = loc[-1]
+        allowed = _fields_at(loc[:-1])
+        hint = difflib.get_close_matches(str(unknown), allowed, n=1)
+        message = f"unknown key {unknown!r}" + (f" in {_parent(loc)}" if loc[:-1] else "")
+        message += f" (did you mean {hint[0]!r}?)" if hint else f" (allowed: {', '.join(allowed)})"
+        return SpecError(message, source.locate(loc, key=True))
+    if kind == "missing":
+        return SpecError(f"missing required key {loc[-1]!r}" + (f" in {_parent(loc)}" if loc[:-1] else ""),
+                         source.locate(loc[:-1]))
+    if kind == "too_short" and loc == ("robots",):
+        return SpecError("robots: a fleet needs at least one robot", source.locate(loc))
+    message = problem["msg"]
+    message = message.removeprefix("Value error, ")
+    if kind.endswith("_type") or kind in ("literal_error", "too_short"):
+        got = problem.get("input")
+        if kind != "too_short":
+            message = f"{message}, got {_describe(got)}"
+    return SpecError(f"{where}: {message}" if where else message, source.locate(loc))
+
+
+def _is_pydantic_branch(part: Any) -> bool:
+    # Unions and tagged types add loc parts like 'function-after[...]' or 'literal[...]'.
+    return isinstance(part, str) and ("[" in part or part in ("tuple",))
+
+
+def _parent(loc: tuple) -> str:
+    parts = [str(p) if not isinstance(p, int) else f"[{p}]" for p in loc[:-1]]
+    return ".".join(parts).replace(".[", "[")
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, str):
+        return f"string {value!r}"
+    if value is None:
+        return "null"
+    if isinstance(value, (dict, list)):
+        return type(value).__name__.replace("dict", "mapping")
+    return f"{type(value).__name__} {value!r}"
+
+
+def _fields_at(loc: tuple) -> list[str]:
+    """Field names of the model found at `loc` in the spec schema (for did-you-mean)."""
+    annotation: Any = FleetSpec
+    for part in loc:
+        model = _model_in(annotation)
+        if model is not None and isinstance(part, str) and part in model.model_fields:
+            annotation = model.model_fields[part].annotation
+            continue
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        annotation = args[-1] if args else annotation
+    model = _model_in(annotation)
+    if model is None:
+        return []
+    return [name for name, field in model.model_fields.items() if not field.exclude]
+
+
+def _model_in(annotation: Any) -> type[BaseModel] | None:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    if isinstance(annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union:
+        for arg in typing.get_args(annotation):
+            if isinstance(arg, type) and issubclass(arg, BaseModel):
+                return arg
+    return None

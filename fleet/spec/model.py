@@ -1,0 +1,189 @@
+"""The fleet spec schema (pydantic).  Field documentation here is the reference for docs/spec.md."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+
+def _ints_to_floats(data: Any, keep: set[str] = frozenset()) -> Any:
+    """Strict mode refuses `x: 1` for a float; people write that, so promote ints (not bools)."""
+    if not isinstance(data, dict):
+        return data
+    out = {}
+    for key, value in data.items():
+        if key in keep:
+            out[key] = value
+        elif isinstance(value, int) and not isinstance(value, bool):
+            out[key] = float(value)
+        elif isinstance(value, list) and key in ("position", "size"):
+            out[key] = tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value)
+        else:
+            out[key] = value
+    return out
+
+
+ScalarArg = bool | int | float | str
+
+
+class Strict(BaseModel):
+    # Unknown keys are errors (with a did-you-mean, see load.py); no silent coercion of
+    # strings into numbers.
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+
+class Pose(Strict):
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0  # radians
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ints_are_floats(cls, data: Any) -> Any:
+        return _ints_to_floats(data)
+
+
+class Lidar(Strict):
+    beams: int = Field(360, ge=1, le=4096)
+    rate: float = Field(10.0, gt=0, le=100)
+    range_min: float = Field(0.12, ge=0)
+    range_max: float = Field(8.0, gt=0, le=100)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ints_are_floats(cls, data: Any) -> Any:
+        return _ints_to_floats(data, keep={"beams"})
+
+
+class Model(Strict):
+    """The simulated body: `light` (planar one-body diff drive, cheap) or a URDF from pybullet_data."""
+
+    type: Literal["light", "husky", "racecar"] = "light"
+    radius: float = Field(0.2, gt=0, le=5)  # footprint radius of the light model, m
+    max_linear_speed: float = Field(1.0, gt=0, le=20)  # m/s
+    max_angular_speed: float = Field(2.5, gt=0, le=50)  # rad/s
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ints_are_floats(cls, data: Any) -> Any:
+        return _ints_to_floats(data)
+
+
+class ModelOverride(Strict):
+    """A robot's changes to the default model: only the fields it sets."""
+
+    type: Literal["light", "husky", "racecar"] | None = None
+    radius: float | None = Field(None, gt=0, le=5)
+    max_linear_speed: float | None = Field(None, gt=0, le=20)
+    max_angular_speed: float | None = Field(None, gt=0, le=50)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ints_are_floats(cls, data: Any) -> Any:
+        return _ints_to_floats(data)
+
+
+class Obstacle(Strict):
+    name: str
+    type: Literal["box", "wall", "cylinder"]
+    position: tuple[float, float]  # x, y of the centre, m
+    yaw: float = 0.0
+    size: tuple[float, float, float] | None = None  # box/wall: x, y, z extent, m
+    radius: float | None = Field(None, gt=0)  # cylinder
+    height: float = Field(1.0, gt=0)  # cylinder
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ints_are_floats(cls, data: Any) -> Any:
+        return _ints_to_floats(data)
+
+    @model_validator(mode="after")
+    def _shape_complete(self) -> "Obstacle":
+        if self.type in ("box", "wall"):
+            if self.size is None:
+                raise ValueError(f"a {self.type} needs size: [x, y, z]")
+            if min(self.size) <= 0:
+                raise ValueError("size must be positive in every axis")
+            if self.radius is not None:
+                raise ValueError(f"a {self.type} has a size, not a radius")
+        if self.type == "cylinder":
+            if self.radius is None:
+                raise ValueError("a cylinder needs radius")
+            if self.size is not None:
+                raise ValueError("a cylinder has radius and height, not size")
+        return self
+
+
+class World(Strict):
+    agent: str | None = None  # defaults to defaults.agent
+    physics_rate: float = Field(240.0, gt=0, le=2000)  # Hz
+    real_time: bool = True
+    clock_rate: float = Field(100.0, gt=0, le=1000)  # Hz of /clock
+    odom_rate: float = Field(50.0, gt=0, le=1000)
+    cmd_timeout: float = Field(0.5, gt=0, le=60)
+    obstacles: list[Obstacle] = []
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ints_are_floats(cls, data: Any) -> Any:
+        return _ints_to_floats(data)
+
+
+class Ros(Strict):
+    domain_id: int = Field(0, ge=0, le=232)
+    use_sim_time: bool = True
+
+
+class Agent(Strict):
+    description: str = ""
+
+
+Isolation = Literal["process", "robot"]
+
+
+class Defaults(Strict):
+    template: str = "diff_drive"
+    agent: str = "local"
+    isolation: Isolation = "process"
+    model: Model = Model()
+    lidar: Lidar = Lidar()
+    parameters: dict[str, dict[str, Any]] = {}  # node -> parameter -> value
+    launch_args: dict[str, ScalarArg] = {}
+
+
+class Robot(Strict):
+    name: str
+    namespace: str | None = None  # default: /<name>
+    agent: str | None = None
+    template: str | None = None
+    isolation: Isolation | None = None
+    simulated: bool = True  # hosted by the shared world (false for a real robot)
+    model: ModelOverride = ModelOverride()
+    lidar: Lidar | None = None
+    pose: Pose = Pose()
+    parameters: dict[str, dict[str, Any]] = {}
+    launch_args: dict[str, ScalarArg] = {}
+
+
+class FleetSpec(Strict):
+    fleet: str
+    description: str = ""
+    templates: str | None = None  # directory of the robot's templates, relative to the spec file
+    ros: Ros = Ros()
+    world: World | None = None
+    agents: dict[str, Agent] = {"local": Agent()}
+    defaults: Defaults = Defaults()
+    robots: list[Robot] = Field(min_length=1)
+
+    # Filled by the loader: where the spec came from (not part of the YAML).
+    source_file: str = Field("<spec>", exclude=True)
+    _source_map: Any = PrivateAttr(None)  # fleet.spec.yaml_source.SourceMap of the file
+
+    def where(self, *path: Any) -> str:
+        """`file:line:col` of a place in the spec, for messages and --explain."""
+        if self._source_map is None:
+            return self.source_file
+        return str(self._source_map.locate(tuple(path)))
+
+    def robot(self, name: str) -> Robot | None:
+        return next((robot for robot in self.robots if robot.name == name), None)

@@ -1,0 +1,92 @@
+"""ROS parameter values: what ROS can hold, and flattening of nested parameter maps.
+
+ROS parameters are bool, int, float, str, or homogeneous non-empty lists of one of those.
+A nested mapping inside a node's parameters is a parameter namespace (`pid: {kp: 1}` is the
+parameter `pid.kp`), exactly as rcl reads parameter files.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+SCALAR_TYPES = (bool, int, float, str)
+
+
+def value_problem(value: Any) -> str | None:
+    """Why ROS cannot hold `value` as a parameter, or None when it can."""
+    if value is None:
+        return "null is not a ROS parameter value (give a value, or remove the key)"
+    if isinstance(value, SCALAR_TYPES):
+        return None
+    if isinstance(value, list):
+        if not value:
+            return "an empty list has no type; ROS cannot hold it"
+        for item in value:
+            if isinstance(item, list):
+                return "nested lists are not ROS parameter values"
+            if isinstance(item, dict):
+                return "mappings inside lists are not ROS parameter values"
+            if item is None:
+                return "null inside a list is not a ROS parameter value"
+        kinds = {_kind(item) for item in value}
+        if kinds == {"int", "float"}:
+            return None  # [0, 2.5] is a float list with an int written the short way; see normalize()
+        if len(kinds) > 1:
+            return f"mixed-type list ({', '.join(sorted(kinds))}); ROS lists hold one type"
+        return None
+    return f"{type(value).__name__} is not a ROS parameter value"
+
+
+def normalize(value: Any) -> Any:
+    """The value as written to a parameter file: int/float lists become float lists."""
+    if isinstance(value, list) and any(isinstance(v, float) for v in value):
+        return [float(v) for v in value]
+    return value
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int):
+        return "int"
+    if isinstance(value, float):
+        return "float"
+    return "string"
+
+
+def flatten(parameters: dict, prefix: str = "") -> dict[str, tuple[tuple, Any]]:
+    """{"pid": {"kp": 1}} -> {"pid.kp": (("pid", "kp"), 1)}: dotted name -> (key path, value)."""
+    flat: dict[str, tuple[tuple, Any]] = {}
+    for key, value in parameters.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            for sub_name, (sub_path, sub_value) in flatten(value, name + ".").items():
+                flat[sub_name] = ((key,) + sub_path, sub_value)
+        else:
+            flat[name] = ((key,), value)
+    return flat
+
+
+def unflatten(flat: dict[str, Any]) -> dict[str, Any]:
+    """{"pid.kp": 1} -> {"pid": {"kp": 1}} for writing readable parameter files."""
+    tree: dict[str, Any] = {}
+    for name, value in flat.items():
+        parts = name.split(".")
+        node = tree
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = value
+    return tree
+
+
+def coerce_like(value: Any, reference: Any) -> Any:
+    """Promote ints to floats where the reference (the template's default) is a float.
+
+    People write `max_speed: 1` or `waypoints: [2, 0, 2, 2]`; the node declares doubles and
+    would refuse an integer.  Only this lossless promotion is done: nothing else changes type.
+    """
+    if isinstance(reference, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(reference, list) and reference and isinstance(reference[0], float) and isinstance(value, list):
+        return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value]
+    return value
