@@ -18,6 +18,17 @@ TEMPLATES = REPO / "templates"
 PYTHON = sys.executable
 
 
+def run_fleet(args: list[str]) -> int:
+    """Run the `fleet` command in this process; returns its exit code."""
+    from fleet.cli import main
+
+    try:
+        main(args)
+    except SystemExit as done:
+        return int(done.code or 0)
+    return 0
+
+
 @pytest.fixture(autouse=True)
 def _reap_processes(request):
     """Mark every process this test starts; kill the ones still alive when it ends."""

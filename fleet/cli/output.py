@@ -22,4 +22,5 @@ def print_json(data: Any) -> None:
 def console(stderr: bool = False):
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False)
+    # soft_wrap: long messages (paths) stay on one line instead of being broken mid-word.
+    return Console(stderr=stderr, highlight=False, soft_wrap=True)

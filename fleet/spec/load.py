@@ -65,6 +65,7 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
         check_agent(spec.defaults.agent, ("defaults", "agent"))
 
     check_parameters(spec.defaults.parameters, ("defaults", "parameters"), source)
+    check_launch_args(spec.defaults.launch_args, ("defaults", "launch_args"), source)
     namespaces: dict[str, int] = {}
     seen: dict[str, int] = {}
     for index, robot in enumerate(spec.robots):
@@ -84,12 +85,24 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
         if robot.agent is not None:
             check_agent(robot.agent, here + ("agent",))
         check_parameters(robot.parameters, here + ("parameters",), source)
+        check_launch_args(robot.launch_args, here + ("launch_args",), source)
     if spec.world is not None:
         names: set[str] = set()
         for index, obstacle in enumerate(spec.world.obstacles):
             if obstacle.name in names:
                 fail(f"duplicate obstacle name {obstacle.name!r}", ("world", "obstacles", index, "name"))
             names.add(obstacle.name)
+
+
+def check_launch_args(arguments: dict[str, Any], path: tuple, source: SourceMap) -> None:
+    """Launch argument values land in launch files, where `$(...)` is evaluated by `ros2 launch`
+    (`$(command ...)` even runs a shell): such values are refused, never emitted."""
+    for name, value in arguments.items():
+        if problem := ros_name_problem(name):
+            raise SpecError(f"launch argument name {problem}", source.locate(path + (name,), key=True))
+        if isinstance(value, str) and "$(" in value:
+            raise SpecError(f"launch argument {name}: '$(' would be evaluated as a launch substitution; "
+                            "values must be plain text", source.locate(path + (name,)))
 
 
 def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source: SourceMap) -> None:

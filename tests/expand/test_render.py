@@ -1,0 +1,207 @@
+"""Rendering: structure of generated launch files, parameter layering, hostile values."""
+
+from __future__ import annotations
+
+import ast
+import textwrap
+from pathlib import Path
+
+import yaml
+
+from fleet.expand import expand_fleet
+from fleet.spec import load_spec, parse_spec
+
+from tests.conftest import FLEETS, run_fleet
+
+
+def render_to(tmp_path: Path, spec: Path, *extra: str) -> Path:
+    out = tmp_path / "out"
+    assert run_fleet(["render", str(spec), "-o", str(out), *extra]) == 0
+    return out
+
+
+def launch_nodes(actions: list, namespace: str = "/") -> list[tuple[str, dict]]:
+    """(pushed namespace, node body) for every node in a parsed YAML launch document."""
+    found = []
+    for action in actions:
+        (kind, body), = action.items()
+        if kind == "push_ros_namespace":
+            namespace = body["namespace"]
+        elif kind == "group":
+            found += launch_nodes(body, namespace)
+        elif kind == "node":
+            found.append((namespace, body))
+    return found
+
+
+def test_two_robots_yaml_launch_structure(tmp_path):
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    for robot in ("robot1", "robot2"):
+        document = yaml.safe_load((out / robot / f"{robot}.launch.yaml").read_text())
+        group = next(a["group"] for a in document["launch"] if "group" in a)
+        assert {"push_ros_namespace": {"namespace": f"/{robot}"}} in group
+        nodes = launch_nodes(document["launch"])
+        assert sorted(body["name"] for _, body in nodes) == ["battery", "controller", "safety"]
+        for namespace, body in nodes:
+            assert namespace == f"/{robot}"
+            assert body["pkg"] == "fleet_nodes" and body["exec"] == body["name"]
+            assert {"from": f"$(dirname)/{robot}.params.yaml"} in body["param"]
+    world = yaml.safe_load((out / "world" / "world.launch.yaml").read_text())
+    (_, body), = launch_nodes(world["launch"])
+    assert body["exec"] == "world" and "$(dirname)/world.yaml" in body["args"]
+
+
+def _calls(tree: ast.AST) -> list[ast.Call]:
+    return [node for node in ast.walk(tree) if isinstance(node, ast.Call)]
+
+
+def test_two_robots_python_launch_structure(tmp_path):
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    for robot in ("robot1", "robot2"):
+        tree = ast.parse((out / robot / f"{robot}.launch.py").read_text())
+        functions = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
+        assert functions == ["generate_launch_description"]
+        calls = _calls(tree)
+        names = [c.func.id for c in calls if isinstance(c.func, ast.Name)]
+        assert names.count("GroupAction") == 1 and names.count("Node") == 3
+        push = next(c for c in calls if isinstance(c.func, ast.Name) and c.func.id == "PushRosNamespace")
+        assert ast.literal_eval(push.args[0]) == f"/{robot}"
+        group = next(c for c in calls if isinstance(c.func, ast.Name) and c.func.id == "GroupAction")
+        assert any(isinstance(e, ast.Call) and e.func.id == "PushRosNamespace" for e in group.args[0].elts)
+        for node in (c for c in calls if isinstance(c.func, ast.Name) and c.func.id == "Node"):
+            keywords = {k.arg: k.value for k in node.keywords}
+            assert ast.literal_eval(keywords["package"]) == "fleet_nodes"
+            params_file = keywords["parameters"].elts[0]
+            assert ast.literal_eval(params_file.elts[1]) == f"/{robot}.params.yaml"
+            assert params_file.elts[0].func.id == "ThisLaunchFileDir"
+
+
+def test_params_file_sections_and_override_order(tmp_path):
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml", "--set", "robot2.safety.safety_distance=0.6")
+    robot1 = yaml.safe_load((out / "robot1" / "robot1.params.yaml").read_text())
+    robot2 = yaml.safe_load((out / "robot2" / "robot2.params.yaml").read_text())
+    assert set(robot1) == {"/robot1/controller", "/robot1/battery", "/robot1/safety"}
+    assert robot1["/robot1/controller"]["ros__parameters"]["max_speed"] == 0.4  # fleet defaults beat template (0.5)
+    assert robot2["/robot2/controller"]["ros__parameters"]["max_speed"] == 0.8  # robot beats fleet defaults
+    assert robot2["/robot2/safety"]["ros__parameters"]["safety_distance"] == 0.6  # --set beats everything
+    assert robot1["/robot1/safety"]["ros__parameters"]["safety_distance"] == 0.4
+    assert robot1["/robot1/controller"]["ros__parameters"]["max_turn_rate"] == 1.5  # template default
+
+
+def test_layers_precedence_and_explain(tmp_path):
+    spec = parse_spec(textwrap.dedent("""\
+        fleet: demo
+        defaults:
+          parameters: {controller: {max_speed: 0.3, goal_tolerance: 0.2}}
+        robots:
+          - name: a
+            parameters: {controller: {max_speed: 0.6, waypoints: [1, 0, 2, 0]}}
+          - name: b
+        """), "demo.yaml")
+    expansion = expand_fleet(spec, ["a.controller.goal_tolerance=0.05", "b.controller.loop=false"])
+    a = expansion.robot("a").parameters
+    b = expansion.robot("b").parameters
+    assert a.effective()["controller"]["max_speed"] == 0.6
+    assert a.effective()["controller"]["waypoints"] == [1.0, 0.0, 2.0, 0.0]  # ints promoted to the declared doubles
+    assert [s.layer for s in a.explain("controller", "goal_tolerance")] == ["template", "defaults", "--set"]
+    assert a.effective()["controller"]["goal_tolerance"] == 0.05
+    assert b.effective()["controller"]["max_speed"] == 0.3
+    assert b.effective()["controller"]["loop"] is False
+    assert [s.layer for s in a.explain("controller", "max_speed")] == ["template", "defaults", "robot"]
+    assert a.explain("controller", "max_speed")[-1].source == "demo.yaml:6:42"
+
+
+def test_explain_cli(tmp_path, capsys):
+    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "--explain", "robot2.controller.max_speed",
+                      "--set", "robot2.controller.max_speed=1.2", "--json"]) == 0
+    import json
+
+    data = json.loads(capsys.readouterr().out)
+    assert data["value"] == 1.2
+    assert [layer["layer"] for layer in data["layers"]] == ["template", "defaults", "robot", "--set"]
+    assert [layer["value"] for layer in data["layers"]] == [0.5, 0.4, 0.8, 1.2]
+
+
+def test_dry_plan_json_lists_robots_nodes_parameters(capsys):
+    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "--json"]) == 0
+    import json
+
+    data = json.loads(capsys.readouterr().out)
+    assert [r["name"] for r in data["robots"]] == ["robot1", "robot2"]
+    assert data["robots"][1]["parameters"]["controller"]["max_speed"] == {"value": 0.8, "from": "robot"}
+    assert [n["fqn"] for n in data["robots"][0]["nodes"]] == ["/robot1/controller", "/robot1/battery", "/robot1/safety"]
+    assert data["agents"]["local"]["units"] == ["robot1", "robot2", "world"]
+
+
+def test_format_option(tmp_path):
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml", "--format", "yaml")
+    assert sorted(p.name for p in (out / "robot1").iterdir()) == ["robot1.launch.yaml", "robot1.params.yaml"]
+
+
+def test_bigger_example_renders(tmp_path):
+    out = render_to(tmp_path, FLEETS / "warehouse_ten.yaml")
+    assert len([p for p in out.iterdir() if p.is_dir()]) == 11
+    r08 = yaml.safe_load((out / "r08" / "r08.launch.yaml").read_text())
+    arg = next(a["arg"] for a in r08["launch"] if "arg" in a and a["arg"]["name"] == "enable_safety")
+    assert arg["default"] == "false"
+
+
+HOSTILE = [
+    'x"}\n- node: {pkg: evil, exec: evil, name: evil}\n#',
+    "'); import os; os.system('touch /tmp/pwned'); ('",
+    "$ (env HOME)\n  - node: {pkg: x}",
+    "{{ 7 * 7 }}",
+    "a: b\n/robot2/controller:\n  ros__parameters: {max_speed: 99.0}",
+    "\u2028\u0085 line separators",
+]
+
+
+def test_hostile_values_stay_inert(tmp_path):
+    """Quotes, newlines, YAML, Python and Jinja syntax in values never add actions, nodes or code."""
+    spec_path = tmp_path / "hostile.yaml"
+    robots = []
+    for index, value in enumerate(HOSTILE):
+        robots.append({"name": f"r{index}", "launch_args": {"log_level": value},
+                       "parameters": {"controller": {"waypoints": [1.0, 0.0]}, "battery": {"label": value}}})
+    spec_path.write_text(yaml.safe_dump({"fleet": "hostile", "robots": robots}))
+    out = render_to(tmp_path, spec_path)
+    for index, value in enumerate(HOSTILE):
+        robot = f"r{index}"
+        document = yaml.safe_load((out / robot / f"{robot}.launch.yaml").read_text())
+        assert len(launch_nodes(document["launch"])) == 3
+        assert all(body["pkg"] == "fleet_nodes" for _, body in launch_nodes(document["launch"]))
+        arg = next(a["arg"] for a in document["launch"] if "arg" in a and a["arg"]["name"] == "log_level")
+        assert arg["default"] == value  # the exact string, as one inert value
+        source = (out / robot / f"{robot}.launch.py").read_text()
+        tree = ast.parse(source)
+        called = {c.func.id for c in _calls(tree) if isinstance(c.func, ast.Name)}
+        assert called <= {"LaunchDescription", "DeclareLaunchArgument", "GroupAction", "PushRosNamespace",
+                          "SetEnvironmentVariable", "SetLaunchConfiguration", "Node", "IfCondition",
+                          "LaunchConfiguration", "ThisLaunchFileDir"}
+        assert not [c for c in _calls(tree) if isinstance(c.func, ast.Attribute)]
+        constants = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant)}
+        assert value in constants
+        params = yaml.safe_load((out / robot / f"{robot}.params.yaml").read_text())
+        assert set(params) == {f"/{robot}/controller", f"/{robot}/battery", f"/{robot}/safety"}
+        assert params[f"/{robot}/battery"]["ros__parameters"]["label"] == value
+
+
+def test_launch_substitutions_in_values_are_rejected(tmp_path):
+    """`$(command ...)` in a launch argument would run a shell under ros2 launch."""
+    import pytest
+
+    from fleet.errors import SpecError
+
+    with pytest.raises(SpecError, match="launch substitution") as error:
+        parse_spec("fleet: f\nrobots:\n- name: r1\n  launch_args: {log_level: $(command rm -rf ~)}\n", "f.yaml")
+    assert str(error.value).startswith("f.yaml:4:")
+
+
+def test_hostile_robot_names_are_rejected():
+    import pytest
+
+    from fleet.errors import SpecError
+
+    for name in ['r1"; rm -rf /', "r1\n- node", "r1/../r2", "$(env HOME)", "{{x}}"]:
+        with pytest.raises(SpecError, match="not a valid ROS name"):
+            parse_spec(yaml.safe_dump({"fleet": "f", "robots": [{"name": name}]}), "f.yaml")
