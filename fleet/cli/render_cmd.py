@@ -71,6 +71,6 @@ def write_bundles(expansion, output: Path, format: str) -> list[Path]:
     for bundle in expansion.bundles:
         names = {name for name in bundle.files if left_out is None or not name.endswith(left_out)}
         directory = output / bundle.name
-        bundle.write(directory, names)
+        bundle.write(directory, names, atomic=False)  # nothing runs from a render directory
         written += [directory / name for name in sorted(names)]
     return written

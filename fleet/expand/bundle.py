@@ -39,12 +39,16 @@ class Bundle:
                 "files": dict(self.files), "options": dict(self.options), "hot_files": sorted(self.hot_files),
                 "digest": self.digest}
 
-    def write(self, directory: Path, names: set[str] | None = None) -> None:
-        """Write the files (or only `names`) into `directory`, each atomically."""
+    def write(self, directory: Path, names: set[str] | None = None, atomic: bool = True) -> None:
+        """Write the files (or only `names`) into `directory`; atomically for running agents,
+        whose processes may read them at any moment."""
         directory.mkdir(parents=True, exist_ok=True)
         for name, text in self.files.items():
             if names is None or name in names:
-                write_atomic(directory / name, text)
+                if atomic:
+                    write_atomic(directory / name, text)
+                else:
+                    (directory / name).write_text(text, encoding="utf-8")
 
 
 def write_atomic(path: Path, text: str) -> None:

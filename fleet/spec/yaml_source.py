@@ -16,7 +16,13 @@ import yaml
 
 from fleet.errors import Location, SpecError
 
-Path_ = tuple  # a path into the data: ("robots", 1, "parameters", "controller")
+# libyaml's parser when PyYAML was built with it: about ten times faster on big specs.
+FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+FAST_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
+
+def safe_load(text: str):
+    return yaml.load(text, Loader=FAST_LOADER)
 
 
 @dataclass
@@ -47,7 +53,7 @@ def load_yaml(text: str, file: str | Path) -> tuple[Any, SourceMap]:
     """Parse YAML text into plain data plus its SourceMap; syntax errors become SpecError."""
     source = SourceMap(str(file))
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        node = yaml.compose(text, Loader=FAST_LOADER)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         problem = error.problem or error.context or "invalid YAML"
@@ -57,44 +63,47 @@ def load_yaml(text: str, file: str | Path) -> tuple[Any, SourceMap]:
         raise SpecError(f"YAML error: {error}", Location(file)) from None
     if node is None:
         return None, source
-    return _construct(node, (), source), source
+    return _Builder(source).build(node, ()), source
 
 
-def _construct(node: yaml.Node, path: tuple, source: SourceMap) -> Any:
+class _Builder:
+    """Plain data from composed nodes, recording positions on the way."""
+
+    def __init__(self, source: SourceMap):
+        self.source = source
+        self.constructor = yaml.constructor.SafeConstructor()
+
+    def build(self, node: yaml.Node, path: tuple) -> Any:
+        return _construct(node, path, self.source, self)
+
+
+def _construct(node: yaml.Node, path: tuple, source: SourceMap, builder: "_Builder") -> Any:
     source.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
     if isinstance(node, yaml.MappingNode):
         result: dict[Any, Any] = {}
         for key_node, value_node in node.value:
             if key_node.tag == "tag:yaml.org,2002:merge":
                 raise SpecError("YAML merge keys (<<) are not supported in fleet specs", _mark(source, key_node))
-            key = _scalar(key_node, source)
+            key = _scalar(key_node, source, builder)
             if not isinstance(key, (str, int, float, bool)):
                 raise SpecError("mapping keys must be plain scalars", _mark(source, key_node))
             if key in result:
                 raise SpecError(f"duplicate key {key!r}", _mark(source, key_node))
             source.key_positions[path + (key,)] = (key_node.start_mark.line + 1, key_node.start_mark.column + 1)
-            result[key] = _construct(value_node, path + (key,), source)
+            result[key] = _construct(value_node, path + (key,), source, builder)
         return result
     if isinstance(node, yaml.SequenceNode):
-        return [_construct(item, path + (index,), source) for index, item in enumerate(node.value)]
-    return _scalar(node, source)
+        return [_construct(item, path + (index,), source, builder) for index, item in enumerate(node.value)]
+    return _scalar(node, source, builder)
 
 
-def _scalar(node: yaml.Node, source: SourceMap) -> Any:
+def _scalar(node: yaml.Node, source: SourceMap, builder: "_Builder") -> Any:
     if not isinstance(node, yaml.ScalarNode):
         raise SpecError("expected a plain value here", _mark(source, node))
     try:
-        return _construct_scalar(node)
+        return builder.constructor.construct_object(node, deep=True)
     except yaml.constructor.ConstructorError as error:
         raise SpecError(f"bad value: {error.problem}", _mark(source, node)) from None
-
-
-def _construct_scalar(node: yaml.ScalarNode) -> Any:
-    loader = yaml.SafeLoader("")
-    try:
-        return loader.construct_object(node, deep=True)
-    finally:
-        loader.dispose()
 
 
 def _mark(source: SourceMap, node: yaml.Node) -> Location:
@@ -104,6 +113,6 @@ def _mark(source: SourceMap, node: yaml.Node) -> Location:
 def parse_scalar(text: str) -> Any:
     """A command-line value parsed as one YAML scalar or flow collection (`0.8`, `true`, `[1, 2]`)."""
     try:
-        return yaml.safe_load(text) if text.strip() else ""
+        return safe_load(text) if text.strip() else ""
     except yaml.YAMLError as error:
         raise ValueError(f"not a YAML value: {error}") from None

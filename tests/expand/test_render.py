@@ -205,3 +205,37 @@ def test_hostile_robot_names_are_rejected():
     for name in ['r1"; rm -rf /', "r1\n- node", "r1/../r2", "$(env HOME)", "{{x}}"]:
         with pytest.raises(SpecError, match="not a valid ROS name"):
             parse_spec(yaml.safe_dump({"fleet": "f", "robots": [{"name": name}]}), "f.yaml")
+
+
+def test_params_emitter_round_trips_through_yaml():
+    from fleet.expand import yaml_emit
+
+    tree = {"/r1/controller": {"ros__parameters": {
+        "f": 1e-05, "g": 2.0, "h": -3.5e20, "i": 7, "b": True, "s": "a: b\n- c \"q\" \u2028", "e": "",
+        "yes_string": "yes", "num_string": "1.5", "lf": [1.0, 2.5], "ls": ["x", "true", "On", "null", "/a/b", "0x1f", "1_000", "a b"], "lb": [False],
+        "pid": {"kp": 1.5, "inner": {"x": 1}}, "inf": float("inf")}}}
+    text = yaml_emit.emit(tree)
+    assert yaml.safe_load(text) == tree
+    world = {"obstacles": [{"name": "a", "position": [1.0, 2.0]}, {"name": "b", "size": [1.0, 1.0, 1.0]}],
+             "robots": [{"name": "r1", "model": {"type": "light"}, "pose": {"x": 0.0}}], "empty": {}}
+    assert yaml.safe_load(yaml_emit.emit(world)) == world
+
+
+def test_shape_cache_matches_full_render(tmp_path):
+    """Robots reusing a parsed template shape get exactly what a full parse would give."""
+    from fleet.expand.rendered_launch import LaunchRenderer, _NAME
+    from fleet.expand.templating import TemplateSet, builtin_template_dirs
+    from fleet.errors import Location
+
+    renderer = LaunchRenderer(TemplateSet(builtin_template_dirs()), "f")
+    results = {}
+    for name in ("a", "b"):
+        context = {"robot": {"name": name, "namespace": f"/site/{name}", "agent": "local", "model": {}, "pose": {}},
+                   "fleet": {"name": "f", "domain_id": 0, "use_sim_time": True},
+                   "params_file": f"$(dirname)/{name}.params.yaml"}
+        cached = renderer.render("diff_drive", context, {}, Location("x"))
+        full = renderer._parse("diff_drive", context, {}, Location("x"), name)
+        assert cached == full
+        assert _NAME not in cached.python and _NAME not in cached.text
+        results[name] = cached
+    assert [n.fqn for n in results["b"].outline.nodes] == ["/site/b/controller", "/site/b/battery", "/site/b/safety"]

@@ -1,0 +1,297 @@
+"""Memory and start-up time per robot: `isolation: process` vs `isolation: robot`.
+
+For N robots (default 1, 10, 30) this writes one launch file per robot (controller, battery and
+safety of fleet_nodes in /robotK, parameters from a file, as `fleet render` produces them),
+starts one LaunchSession per robot in an isolated ROS domain, and measures
+
+- start-up: from the first start() until every node is in the ROS graph (seen by a probe node);
+- memory: after the graph is complete and a settling pause, the sum over every node process of
+  PSS (proportional set size: shared pages divided among the processes sharing them, so the sum
+  is what the fleet really costs) and, for comparison, of RSS (counts shared pages once per
+  process, so it overstates a sum).
+
+Usage: .venv/bin/python bench/bench_isolation.py [--robots 1 10 30] [--output bench/results/isolation.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import psutil
+
+from fleet.runtime.processes import group_members
+from fleet.runtime.supervisor import LaunchSession
+from fleet.testing.isolation import reserve_domain_id, ros_environment
+
+LAUNCH = """\
+launch:
+- group:
+  - push_ros_namespace: {{namespace: {robot}}}
+  - node:
+      pkg: fleet_nodes
+      exec: controller
+      name: controller
+      param:
+      - {{from: $(dirname)/{robot}.params.yaml}}
+      - {{name: use_sim_time, value: 'false'}}
+      remap:
+      - {{from: cmd_vel, to: cmd_vel_nav}}
+  - node:
+      pkg: fleet_nodes
+      exec: battery
+      name: battery
+      param:
+      - {{from: $(dirname)/{robot}.params.yaml}}
+  - node:
+      pkg: fleet_nodes
+      exec: safety
+      name: safety
+      param:
+      - {{from: $(dirname)/{robot}.params.yaml}}
+      remap:
+      - {{from: cmd_vel_in, to: cmd_vel_nav}}
+      - {{from: cmd_vel_out, to: cmd_vel}}
+"""
+PARAMS = """\
+/{robot}/controller:
+  ros__parameters: {{max_speed: 0.5}}
+/{robot}/battery:
+  ros__parameters: {{capacity: 100.0}}
+/{robot}/safety:
+  ros__parameters: {{safety_distance: 0.4}}
+"""
+NODES_PER_ROBOT = ("controller", "battery", "safety")
+SETTLE = 3.0  # s after the graph is complete, before measuring memory
+MIB = 1024 * 1024
+
+
+def machine() -> dict[str, str]:
+    model = platform.processor() or "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "nproc": str(os.cpu_count()),
+        "cpu": model,
+        "ram": f"{psutil.virtual_memory().total / 1024**3:.1f} GiB",
+        "kernel": platform.release(),
+        "python": platform.python_version(),
+        "load": " ".join(f"{value:.2f}" for value in os.getloadavg()),
+    }
+
+
+def pss_and_rss(pid: int) -> tuple[int, int]:
+    """Bytes of PSS and RSS of one process, from /proc/<pid>/smaps_rollup."""
+    pss = rss = 0
+    with open(f"/proc/{pid}/smaps_rollup") as handle:
+        for line in handle:
+            if line.startswith("Pss:"):
+                pss = int(line.split()[1]) * 1024
+            elif line.startswith("Rss:"):
+                rss = int(line.split()[1]) * 1024
+    return pss, rss
+
+
+class Probe:
+    def __init__(self):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self.context = Context()
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("bench_probe", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def wait_for(self, expected: set, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if expected <= set(self.node.get_node_names_and_namespaces()):
+                return True
+            self.executor.spin_once(timeout_sec=0.05)
+        return False
+
+    def wait_gone(self, namespaces: set[str], timeout: float) -> None:
+        """Let the previous case's nodes leave the graph before the next case starts."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            graph = self.node.get_node_names_and_namespaces()
+            if not any(namespace in namespaces for _, namespace in graph):
+                return
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+def write_robots(robots: int, workdir: Path) -> tuple[list[Path], set]:
+    robot_names = [f"robot{index + 1}" for index in range(robots)]
+    paths = []
+    for robot in robot_names:
+        (workdir / f"{robot}.params.yaml").write_text(PARAMS.format(robot=robot))
+        path = workdir / f"{robot}.launch.yaml"
+        path.write_text(LAUNCH.format(robot=robot))
+        paths.append(path)
+    expected = {(node, f"/{robot}") for robot in robot_names for node in NODES_PER_ROBOT}
+    return paths, expected
+
+
+def cpu_seconds(pids: set[int]) -> float:
+    total = 0.0
+    for pid in pids:
+        try:
+            times = psutil.Process(pid).cpu_times()
+            total += times.user + times.system
+        except psutil.NoSuchProcess:
+            pass
+    return total
+
+
+def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe) -> dict:
+    paths, expected = write_robots(robots, workdir)
+    sessions = [
+        LaunchSession(path, env=env, log_dir=workdir / "logs" / path.stem,
+                      isolation=isolation, backend="embedded")  # fmt: skip
+        for path in paths
+    ]
+    try:
+        began = time.monotonic()
+        for session in sessions:
+            session.start()
+        complete = probe.wait_for(expected, timeout=120 + 5 * robots)
+        startup = time.monotonic() - began
+        if not complete:
+            raise RuntimeError(f"{isolation}, {robots} robots: graph incomplete after {startup:.0f} s")
+        pids = set()
+        for session in sessions:
+            for status in session.status():
+                if status.state != "running":
+                    raise RuntimeError(f"{status.process} is {status.state}: {session.tail(status.process)}")
+                pids.update(group_members(status.pid))
+        # CPU the processes spent to get there: independent of DDS discovery jitter.
+        startup_cpu = cpu_seconds(pids)
+        time.sleep(SETTLE)
+        pss = rss = 0
+        for pid in pids:
+            process_pss, process_rss = pss_and_rss(pid)
+            pss += process_pss
+            rss += process_rss
+    finally:
+        for session in sessions:
+            session.stop()
+    probe.wait_gone({namespace for _, namespace in expected}, timeout=15)
+    return {
+        "robots": robots,
+        "isolation": isolation,
+        "processes": len(pids),
+        "startup_s": startup,
+        "startup_cpu_s": startup_cpu,
+        "pss_mib_per_robot": pss / MIB / robots,
+        "rss_mib_per_robot": rss / MIB / robots,
+        "pss_mib_total": pss / MIB,
+    }
+
+
+def report(results: list[dict], info: dict[str, str]) -> str:
+    lines = [
+        "# Isolation benchmark: `process` vs `robot`",
+        "",
+        "Produced by `bench/bench_isolation.py`. Each robot is one launch file with the fleet_nodes",
+        "controller, battery and safety (parameters from a file, as rendered), started by the embedded",
+        "runner, one LaunchSession per robot, in an isolated ROS domain (FastDDS, localhost).",
+        "",
+        "- start-up: from the first `start()` until every node is in the ROS graph (probe node);",
+        "  this includes FastDDS discovery, which adds a jitter of up to ~3 s (its announcement",
+        "  period). Start-up CPU (user+system seconds the node processes had used when the graph",
+        "  was complete) is the jitter-free measure of what starting costs.",
+        "- memory: sum over all node processes, measured "
+        f"{SETTLE:.0f} s after the graph is complete. **PSS** (shared pages split among the sharing",
+        "  processes: the sum is the real cost) is the figure to compare; RSS (shared pages counted",
+        "  in every process) is given for reference.",
+        "",
+        "Machine: " + ", ".join(f"{key} {value}" for key, value in info.items()) + ".",
+        "The 2 cores are shared with other engineers' work, so start-up times carry noise.",
+        "",
+        "| robots | isolation | processes | start-up (s) | start-up per robot (s) | start-up CPU per robot (s) | PSS per robot (MiB) | RSS per robot (MiB) | PSS total (MiB) |",
+        "|---:|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for row in results:
+        lines.append(
+            f"| {row['robots']} | {row['isolation']} | {row['processes']} | {row['startup_s']:.1f} | "
+            f"{row['startup_s'] / row['robots']:.2f} | {row['startup_cpu_s'] / row['robots']:.2f} | "
+            f"{row['pss_mib_per_robot']:.1f} | "
+            f"{row['rss_mib_per_robot']:.1f} | {row['pss_mib_total']:.0f} |"
+        )
+    lines += ["", "Ratio robot/process of PSS per robot:", ""]
+    by_key = {(row["robots"], row["isolation"]): row for row in results}  # last repeat
+    for robots in sorted({row["robots"] for row in results}):
+        process, robot = by_key.get((robots, "process")), by_key.get((robots, "robot"))
+        if process and robot:
+            ratio = robot["pss_mib_per_robot"] / process["pss_mib_per_robot"]
+            speed = robot["startup_s"] / process["startup_s"]
+            cpu = robot["startup_cpu_s"] / process["startup_cpu_s"]
+            lines.append(
+                f"- {robots} robots: memory (PSS) {ratio:.2f}x, start-up time {speed:.2f}x, "
+                f"start-up CPU {cpu:.2f}x"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", type=int, nargs="+", default=[1, 10, 30])
+    parser.add_argument("--isolation", nargs="+", default=["process", "robot"])
+    parser.add_argument("--repeat", type=int, default=1, help="runs of each case (all reported)")
+    parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "isolation.md")
+    args = parser.parse_args()
+    info = machine()
+    results = []
+    with tempfile.TemporaryDirectory(prefix="fleet-bench-") as workdir, reserve_domain_id() as domain:
+        env = ros_environment(domain.domain_id)
+        for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION"):
+            os.environ[key] = env[key]  # the probe lives in this process
+        probe = Probe()
+        try:
+            # Warm-up (page cache, .pyc files, the probe's own discovery); not reported.
+            warm_dir = Path(workdir) / "warm-up"
+            warm_dir.mkdir()
+            run_case(1, "robot", warm_dir, env, probe)
+            for robots in args.robots:
+                for repeat in range(args.repeat):
+                    for isolation in args.isolation:
+                        case_dir = Path(workdir) / f"{isolation}-{robots}-{repeat}"
+                        case_dir.mkdir()
+                        row = run_case(robots, isolation, case_dir, env, probe)
+                        results.append(row)
+                        print(
+                            f"{robots:>3} robots {isolation:<8} {row['processes']:>3} processes "
+                            f"start-up {row['startup_s']:6.1f} s (cpu {row['startup_cpu_s']:6.1f} s)  "
+                            f"PSS/robot {row['pss_mib_per_robot']:6.1f} MiB  "
+                            f"RSS/robot {row['rss_mib_per_robot']:6.1f} MiB",
+                            flush=True,
+                        )
+        finally:
+            probe.close()
+    text = report(results, info)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

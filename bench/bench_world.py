@@ -1,0 +1,212 @@
+"""Real-time factor of the shared world against robot count, light model and husky.
+
+Each configuration runs in its own process (fresh pybullet and rclpy): N robots on a 2 m grid inside
+a walled arena with a few pillars, every robot driving a circle (so contacts happen), odometry at
+50 Hz and 360-beam scans at 10 Hz published through rclpy, /clock at 100 Hz, status file at 4 Hz,
+paced as fast as possible for a fixed sim duration.  RTF = sim seconds / wall seconds of the run
+(start-up excluded, reported separately).
+
+    .venv/bin/python bench/bench_world.py            # full table -> bench/results/world.md
+    .venv/bin/python bench/bench_world.py --quick    # smaller counts, shorter runs, no file
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "bench" / "results" / "world.md"
+LIGHT_COUNTS = [1, 10, 50, 100, 200]
+HUSKY_COUNTS = [1, 10, 30, 50, 100, 200]
+MAX_PREDICTED_WALL = 120.0  # s: skip a husky count predicted to run longer than this
+
+
+def world_yaml(model: str, count: int) -> dict:
+    side = max(1, math.ceil(math.sqrt(count)))
+    spacing = 2.5 if model == "husky" else 2.0
+    half = side * spacing / 2 + 1.5
+    robots = []
+    for i in range(count):
+        x = (i % side - (side - 1) / 2) * spacing
+        y = (i // side - (side - 1) / 2) * spacing
+        robots.append({"name": f"robot{i + 1}", "model": {"type": model}, "pose": {"x": x, "y": y, "yaw": 0.3 * i},
+                       "lidar": {"beams": 360, "rate": 10.0, "range_min": 0.12, "range_max": 8.0},
+                       "odom_rate": 50.0, "cmd_timeout": 0.5})
+    obstacles = [
+        {"name": "north", "type": "wall", "position": [0.0, half], "size": [2 * half, 0.2, 1.0]},
+        {"name": "south", "type": "wall", "position": [0.0, -half], "size": [2 * half, 0.2, 1.0]},
+        {"name": "east", "type": "wall", "position": [half, 0.0], "size": [0.2, 2 * half, 1.0]},
+        {"name": "west", "type": "wall", "position": [-half, 0.0], "size": [0.2, 2 * half, 1.0]},
+    ]
+    # pillars in the middle of grid cells (between robots)
+    for k in range(min(side - 1, 6)):
+        px = (k - (side - 2) / 2) * spacing
+        obstacles.append({"name": f"pillar{k}", "type": "cylinder", "position": [px, spacing / 2 if side > 1 else 1.5],
+                          "radius": 0.2, "height": 1.0})
+    return {"fleet": f"bench_{model}_{count}", "physics_rate": 240.0, "real_time": False, "clock_rate": 100.0,
+            "obstacles": obstacles, "robots": robots}
+
+
+def run_one(model: str, count: int, sim_duration: float) -> dict:
+    """Child process body: build the world, drive every robot, time app.run()."""
+    import resource
+
+    from fleet.world.app import WorldApp
+    from fleet.world.ros_bridge import Command, RobotChannel, RosBridge
+
+    published = {"odom": 0, "scan": 0}
+    odom, scan = RobotChannel.publish_odom, RobotChannel.publish_scan
+
+    def count_odom(self, *a):
+        published["odom"] += 1
+        odom(self, *a)
+
+    def count_scan(self, *a):
+        published["scan"] += 1
+        scan(self, *a)
+
+    RobotChannel.publish_odom, RobotChannel.publish_scan = count_odom, count_scan
+    with tempfile.TemporaryDirectory() as tmp:
+        config = Path(tmp) / "world.yaml"
+        config.write_text(yaml.safe_dump(world_yaml(model, count)))
+        t0 = time.perf_counter()
+        bridge = RosBridge([])
+        app = WorldApp(config, Path(tmp) / "status.json", as_fast_as_possible=True, bridge=bridge)
+        setup = time.perf_counter() - t0
+        spawned = len(app.robots)
+        for i, robot in enumerate(app.robots.values()):
+            # a command that never times out: drive circles, half of them the other way
+            robot.channel.command = Command(0.5, 0.3 if i % 2 else -0.3, math.inf, math.inf)
+        app.run(sim_duration=0.5)  # warm-up
+        published.update(odom=0, scan=0)
+        contacts0 = app.contacts_count
+        cpu0 = time.process_time()
+        t0 = time.perf_counter()
+        app.run(sim_duration=sim_duration)
+        wall = time.perf_counter() - t0
+        cpu = time.process_time() - cpu0
+        contacts = app.contacts_count - contacts0
+        app.close()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {"model": model, "robots": spawned, "sim": sim_duration, "wall": wall, "rtf": sim_duration / wall,
+            "cpu_share": cpu / wall, "setup": setup, "odom_hz": published["odom"] / sim_duration / max(spawned, 1),
+            "scan_hz": published["scan"] / sim_duration / max(spawned, 1), "contacts": contacts, "rss_mib": rss}
+
+
+def machine() -> dict:
+    cpu = "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem = "unknown"
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemTotal"):
+                mem = f"{int(line.split()[1]) / 1024 / 1024:.1f} GiB"
+    except OSError:
+        pass
+    import pybullet  # noqa: F401  (version below)
+
+    return {"nproc": os.cpu_count(), "cpu": cpu, "ram": mem, "python": platform.python_version(),
+            "load": " ".join(f"{x:.2f}" for x in os.getloadavg()),
+            "kernel": platform.release()}
+
+
+def child(model: str, count: int, sim: float, env: dict) -> dict | None:
+    done = subprocess.run([sys.executable, __file__, "--child", model, str(count), str(sim)], env=env,
+                          capture_output=True, text=True, timeout=900)
+    for line in done.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[7:])
+    sys.stderr.write(done.stdout[-2000:] + done.stderr[-2000:])
+    return None
+
+
+def table(rows: list[dict]) -> str:
+    out = ["| model | robots | sim s | wall s | RTF | CPU (cores) | odom Hz/robot | scan Hz/robot | contacts | start-up s | RSS MiB |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        if r.get("skipped"):
+            out.append(f"| {r['model']} | {r['robots']} | - | - | skipped: {r['skipped']} | | | | | | |")
+            continue
+        out.append(f"| {r['model']} | {r['robots']} | {r['sim']:.0f} | {r['wall']:.2f} | **{r['rtf']:.2f}** | "
+                   f"{r['cpu_share']:.2f} | {r['odom_hz']:.1f} | {r['scan_hz']:.1f} | {r['contacts']} | "
+                   f"{r['setup']:.2f} | {r['rss_mib']:.0f} |")
+    return "\n".join(out)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--child", nargs=3, metavar=("MODEL", "COUNT", "SIM"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        model, count, sim = args.child
+        print("RESULT " + json.dumps(run_one(model, int(count), float(sim))), flush=True)
+        return
+
+    sys.path.insert(0, str(ROOT))
+    from fleet.testing.isolation import reserve_domain_id, ros_environment
+
+    light_counts, husky_counts = ([1, 10, 50], [1, 10]) if args.quick else (LIGHT_COUNTS, HUSKY_COUNTS)
+    light_sim, husky_sim = (3.0, 2.0) if args.quick else (10.0, 5.0)
+    rows: list[dict] = []
+    with reserve_domain_id() as domain:
+        env = ros_environment(domain.domain_id)
+        env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+        for count in light_counts:
+            row = child("light", count, light_sim, env)
+            if row:
+                rows.append(row)
+                print(table([row]).splitlines()[-1], flush=True)
+        per_robot_step = None
+        for count in husky_counts:
+            if per_robot_step is not None:
+                predicted = per_robot_step * count * husky_sim
+                if predicted > MAX_PREDICTED_WALL:
+                    rows.append({"model": "husky", "robots": count,
+                                 "skipped": f"predicted {predicted:.0f} s wall for {husky_sim:.0f} s sim"})
+                    print(f"husky {count}: skipped (predicted {predicted:.0f} s)", flush=True)
+                    continue
+            row = child("husky", count, husky_sim, env)
+            if row:
+                rows.append(row)
+                per_robot_step = row["wall"] / husky_sim / row["robots"]
+                print(table([row]).splitlines()[-1], flush=True)
+    info = machine()
+    text = table(rows)
+    print(text)
+    if args.quick:
+        return
+    RESULTS.write_text(
+        "# World benchmark: real-time factor against robot count\n\n"
+        f"Measured {time.strftime('%Y-%m-%d %H:%M')} with `bench/bench_world.py` on {info['nproc']} CPUs "
+        f"({info['cpu']}), {info['ram']} RAM, Python {info['python']}, kernel {info['kernel']}; "
+        f"load average at the end {info['load']} (the machine is shared with other work, so numbers "
+        "vary by some percent between runs).\n\n"
+        "Setup: one world process, robots on a grid in a walled arena with pillars, every robot driving a "
+        "circle; physics 240 Hz (10 solver iterations); per robot odometry 50 Hz and a 360-beam lidar at 10 Hz "
+        "(numpy ray casting) published through rclpy (FastDDS, no subscribers), /clock 100 Hz, status file "
+        f"4 Hz; as fast as possible for {light_sim:.0f} s (light) / {husky_sim:.0f} s (husky) of sim time after "
+        "0.5 s of warm-up. RTF = sim time / wall time. CPU = process CPU time / wall time (1.0 = one core).\n\n"
+        + text + "\n\nTargets: RTF >= 1.5 with 100 light robots, >= 1.0 with 30 husky.\n")
+    print(f"wrote {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()
