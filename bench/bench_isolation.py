@@ -256,12 +256,15 @@ def main() -> int:
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 10, 30])
     parser.add_argument("--isolation", nargs="+", default=["process", "robot"])
     parser.add_argument("--repeat", type=int, default=1, help="runs of each case (all reported)")
+    parser.add_argument("--env", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="extra environment of the node processes (e.g. MALLOC_ARENA_MAX=2)")
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "isolation.md")
     args = parser.parse_args()
     info = machine()
     results = []
     with tempfile.TemporaryDirectory(prefix="fleet-bench-") as workdir, reserve_domain_id() as domain:
         env = ros_environment(domain.domain_id)
+        env.update(item.split("=", 1) for item in args.env)
         for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION"):
             os.environ[key] = env[key]  # the probe lives in this process
         probe = Probe()
@@ -286,6 +289,8 @@ def main() -> int:
                         )
         finally:
             probe.close()
+    if args.env:
+        info["node environment"] = " ".join(args.env)
     text = report(results, info)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(text)

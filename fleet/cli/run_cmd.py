@@ -1,7 +1,104 @@
-"""(being written)"""
+"""`fleet run FILE.launch.yaml [name:=value ...]` and `fleet ament-prefix`."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import typer
 
+from fleet.errors import EXIT_FAILURE, FleetError
+
+
+def _launch_args(items: list[str]) -> dict[str, str]:
+    result = {}
+    for item in items:
+        name, separator, value = item.partition(":=")
+        if not separator or not name:
+            raise FleetError(f"launch arguments are name:=value, got '{item}'")
+        result[name] = value
+    return result
+
+
+def _print_line(process: str, line: str) -> None:
+    # One write per line, so lines of different nodes never interleave mid-line.  `ros2 launch`
+    # prefixes its lines itself.
+    prefix = "" if process.startswith("ros2-launch") else f"[{process}] "
+    sys.stdout.write(f"{prefix}{line}\n")
+    sys.stdout.flush()
+
+
+def _summary(session) -> str:
+    rows = [f"fleet: {session.path.name}: {session.backend} backend, isolation {session.isolation}, "
+            f"logs in {session.log_dir}"]  # fmt: skip
+    for status in session.status():
+        rows.append(f"  {status.process:<16} pid {status.pid or '-':<8} {status.fqn or status.name}")
+    return "\n".join(rows)
+
+
+def run(
+    file: Path = typer.Argument(..., help="A ROS 2 YAML launch file (.launch.yaml)."),
+    launch_args: list[str] = typer.Argument(None, help="Launch arguments, name:=value."),
+    isolation: str = typer.Option(
+        "process", "--isolation", help="process: one process per node; robot: the robot's "
+        "fleet_nodes share one process."
+    ),
+    backend: str = typer.Option(
+        "auto", "--backend", help="auto (ros2 launch when installed, else embedded), embedded, ros2."
+    ),
+    log_dir: Path = typer.Option(None, "--log-dir", help="Where node logs go (default ~/.ros/log/...)."),
+) -> None:
+    """Run a launch file in the foreground; Ctrl-C stops every node cleanly."""
+    import signal
+    import threading
+
+    from fleet.runtime.supervisor import LaunchSession
+
+    session = LaunchSession(
+        file,
+        launch_args=_launch_args(launch_args or []),
+        log_dir=log_dir,
+        isolation=isolation,
+        backend=backend,
+        on_line=_print_line,
+    )
+    interrupted = threading.Event()
+
+    def _on_signal(signum, frame):
+        interrupted.set()
+
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        session.start()
+        sys.stderr.write(_summary(session) + "\n")
+        sys.stderr.flush()
+        # Like ros2 launch: run until interrupted or until every process has ended for good.
+        while not interrupted.wait(0.2):
+            if session.done():
+                break
+    finally:
+        if session.backend is not None:
+            sys.stderr.write("fleet: stopping\n" if interrupted.is_set() else "")
+            session.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    failed = session.failed()
+    for status in failed:
+        sys.stderr.write(
+            f"fleet: {status.process} ({status.fqn or status.name}) failed with exit code "
+            f"{status.exit_code}; log: {session.log_file(status.process)}\n"
+        )
+    if failed:
+        raise typer.Exit(EXIT_FAILURE)
+
+
+def ament_prefix() -> None:
+    """Print the ament prefix holding fleet_nodes (add it to AMENT_PREFIX_PATH for ros2 launch)."""
+    from fleet.runtime.ament import ensure_ament_prefix
+
+    print(ensure_ament_prefix())
+
 
 def register(app: typer.Typer) -> None:
-    pass
+    app.command("run")(run)
+    app.command("ament-prefix")(ament_prefix)

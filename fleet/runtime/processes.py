@@ -1,0 +1,85 @@
+"""Starting and signalling node processes: own session, and dead when their supervisor dies.
+
+Each node runs in its own session (so its own process group): signals go to the whole group,
+children of a node included.  `PR_SET_PDEATHSIG` makes the kernel SIGKILL the child when the
+*thread* that forked it exits, which covers a SIGKILLed supervisor; so callers must spawn from a
+thread that lives as long as the children do.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import signal
+import subprocess
+from collections.abc import Mapping, Sequence
+
+_PR_SET_PDEATHSIG = 1
+
+# Resolved once in the parent: the child, between fork and exec, only makes the call.
+_libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+_prctl = _libc.prctl
+_prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+_prctl.restype = ctypes.c_int
+
+
+def _die_with_parent() -> None:
+    _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    # The supervisor may have died between fork and prctl: then we were re-parented already.
+    if os.getppid() == 1:
+        os._exit(1)
+
+
+def spawn(cmd: Sequence[str], env: Mapping[str, str], cwd: str | None = None) -> subprocess.Popen:
+    """Start `cmd` in a new session, stdout and stderr merged into one pipe, stdin closed."""
+    return subprocess.Popen(
+        list(cmd),
+        env=dict(env),
+        cwd=cwd,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        preexec_fn=_die_with_parent,
+        close_fds=True,
+    )
+
+
+def signal_group(pgid: int, signum: int) -> bool:
+    """Send `signum` to a process group; False when the group no longer exists."""
+    try:
+        os.killpg(pgid, signum)
+        return True
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        # Only possible if the id was reused by someone else's group: it is not ours any more.
+        return False
+
+
+def group_members(pgid: int) -> list[int]:
+    """Pids of the live (non-zombie) processes of a process group."""
+    members = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as handle:
+                stat = handle.read()
+        except OSError:
+            continue
+        # Fields after the command name (which may hold spaces and parentheses).
+        fields = stat[stat.rindex(b")") + 2 :].split()
+        state, group = fields[0], int(fields[2])
+        if group == pgid and state != b"Z":
+            members.append(int(entry))
+    return members
+
+
+def group_exists(pgid: int) -> bool:
+    """True while a process group has a live member.  Zombies do not count: an orphaned
+    member's zombie waits for init to reap it, which some inits do only every second or so."""
+    if not signal_group(pgid, 0):
+        return False
+    return bool(group_members(pgid))

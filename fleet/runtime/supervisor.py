@@ -1,0 +1,390 @@
+"""Run a launch file: start its processes, capture their output, respawn them, stop them cleanly.
+
+One thread per session (the "session thread") does every fork, every poll and every signal.
+It lives until all its children are gone, which matters: the children ask the kernel to SIGKILL
+them when the thread that forked them exits (PR_SET_PDEATHSIG), so a SIGKILLed supervisor
+leaves no orphans, while a short-lived spawning thread would kill them at once.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import shutil
+import signal
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from fleet.errors import FleetError, LaunchFileError, Location
+from fleet.runtime import ament
+from fleet.runtime.isolation import ISOLATIONS, ProcessSpec, plan_processes
+from fleet.runtime.launch_file import LaunchPlan, load_launch_file
+from fleet.runtime.node_log import ProcessOutput
+from fleet.runtime.processes import group_exists, signal_group, spawn
+
+BACKENDS = ("auto", "embedded", "ros2")
+STABLE_AFTER = 10.0  # a process that ran this long is healthy again: backoff starts over
+MIN_BACKOFF = 0.25  # base of the exponential backoff when respawn_delay is 0
+MAX_BACKOFF = 30.0
+POLL_INTERVAL = 0.05
+
+# Process states, as status() reports them.
+STARTING = "starting"  # not spawned yet
+RUNNING = "running"
+BACKOFF = "backoff"  # exited, respawn pending
+EXITED = "exited"  # exited with 0, no respawn
+FAILED = "failed"  # exited non-zero (or by a signal), no respawn
+STOPPING = "stopping"
+STOPPED = "stopped"  # stopped by stop()
+
+
+@dataclass(frozen=True)
+class NodeStatus:
+    name: str | None  # node name (None: the executable's default name)
+    fqn: str | None
+    pid: int | None  # shared by every node of a composite process
+    state: str
+    restarts: int
+    exit_code: int | None  # negative: killed by that signal
+    uptime: float  # seconds since the current process started; 0 when not running
+    cmd: list[str]
+    process: str  # `controller-1`, `composite-1`, `ros2-launch-1`: log name and screen prefix
+
+
+def default_log_dir() -> Path:
+    """`$ROS_LOG_DIR` or `$ROS_HOME/log` or `~/.ros/log`, then a directory for this run."""
+    if os.environ.get("ROS_LOG_DIR"):
+        base = Path(os.environ["ROS_LOG_DIR"])
+    elif os.environ.get("ROS_HOME"):
+        base = Path(os.environ["ROS_HOME"]) / "log"
+    else:
+        base = Path.home() / ".ros" / "log"
+    stamp = datetime.datetime.now().strftime("%Y-%m-%d-%H-%M-%S-%f")
+    return base / f"fleet-run-{stamp}-{os.getpid()}"
+
+
+def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
+    """The first respawn waits respawn_delay (as launch does); each further quick failure
+    doubles the wait, up to MAX_BACKOFF (or respawn_delay if that is larger)."""
+    if failures_in_row <= 1:
+        return respawn_delay
+    base = max(respawn_delay, MIN_BACKOFF)
+    return min(max(MAX_BACKOFF, respawn_delay), base * 2 ** (failures_in_row - 1))
+
+
+class _Supervised:
+    """One process slot of the session, across its respawns."""
+
+    def __init__(self, spec: ProcessSpec, output: ProcessOutput):
+        self.spec = spec
+        self.output = output
+        self.popen: subprocess.Popen | None = None
+        self.pump: threading.Thread | None = None  # reads its output
+        self.state = STARTING
+        self.restarts = 0
+        self.exit_code: int | None = None
+        self.started_at = 0.0
+        self.restart_at: float | None = None
+        self.failures_in_row = 0
+
+    @property
+    def pid(self) -> int | None:
+        return self.popen.pid if self.popen is not None else None
+
+    def finished(self) -> bool:
+        """True when its process and every other member of its group are gone."""
+        if self.popen is None:
+            return True
+        if self.popen.poll() is None:
+            return False
+        return not group_exists(self.popen.pid)
+
+
+class LaunchSession:
+    """The processes of one launch file.  See docs/architecture.md, "Runtime"."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        launch_args: Mapping[str, str] | None = None,
+        env: Mapping[str, str] | None = None,
+        log_dir: str | Path | None = None,
+        isolation: str = "process",
+        backend: str = "auto",
+        stop_timeouts: tuple[float, float] = (5.0, 10.0),
+        on_line: Callable[[str, str], None] | None = None,
+    ):
+        if isolation not in ISOLATIONS:
+            raise FleetError(f"isolation must be one of {', '.join(ISOLATIONS)}, got '{isolation}'")
+        if backend not in BACKENDS:
+            raise FleetError(f"backend must be one of {', '.join(BACKENDS)}, got '{backend}'")
+        self.path = Path(path).absolute()
+        self.launch_args = dict(launch_args or {})
+        self.base_env = dict(os.environ if env is None else env)
+        self.log_dir = Path(log_dir) if log_dir is not None else default_log_dir()
+        self.isolation = isolation
+        self.requested_backend = backend
+        self.backend: str | None = None  # the backend start() chose
+        self.sigterm_after, self.sigkill_after = stop_timeouts
+        self.on_line = on_line  # on_line(process_name, line) for processes with output: screen
+        self.plan: LaunchPlan | None = None
+        self._processes: list[_Supervised] = []
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._started = threading.Event()
+        self._start_error: BaseException | None = None
+        self._stop_requested = False
+        self._thread: threading.Thread | None = None
+
+    # -- public API --
+
+    def start(self) -> None:
+        """Check the launch file, then start every process.  Raises FleetError (nothing started)
+        when the file cannot be run."""
+        if self._thread is not None:
+            raise RuntimeError("session already started")
+        specs = self._prepare()
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        for spec in specs:
+            echo = None
+            if spec.echo and self.on_line is not None:
+                echo = self._echo_for(spec.name)
+            output = ProcessOutput(self.log_dir / f"{spec.name}.log", echo)
+            self._processes.append(_Supervised(spec, output))
+        self._thread = threading.Thread(target=self._run, name="fleet-session", daemon=True)
+        self._thread.start()
+        self._started.wait()
+        if self._start_error is not None:
+            self._thread.join()
+            raise self._start_error
+
+    def status(self) -> list[NodeStatus]:
+        now = time.monotonic()
+        result = []
+        with self._lock:
+            for process in self._processes:
+                uptime = now - process.started_at if process.state == RUNNING else 0.0
+                nodes = process.spec.nodes or [None]
+                for node in nodes:
+                    result.append(
+                        NodeStatus(
+                            name=node.name if node is not None else self.path.name,
+                            fqn=node.fqn if node is not None else None,
+                            pid=process.pid if process.state in (RUNNING, STOPPING) else None,
+                            state=process.state,
+                            restarts=process.restarts,
+                            exit_code=process.exit_code,
+                            uptime=round(uptime, 3),
+                            cmd=list(process.spec.cmd),
+                            process=process.spec.name,
+                        )
+                    )
+        return result
+
+    def tail(self, node: str, lines: int = 20) -> list[str]:
+        """Last lines of the process hosting `node` (a node name, fqn, or process name)."""
+        return self._find(node).output.tail(lines)
+
+    def log_file(self, node: str) -> Path:
+        return self._find(node).output.log.path
+
+    def done(self) -> bool:
+        """True when nothing runs and nothing will be respawned."""
+        with self._lock:
+            return all(p.state in (EXITED, FAILED, STOPPED) for p in self._processes)
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until done(); False on timeout."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self.done():
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+            time.sleep(POLL_INTERVAL)
+        return True
+
+    def failed(self) -> list[NodeStatus]:
+        return [status for status in self.status() if status.state == FAILED]
+
+    def stop(self) -> None:
+        """SIGINT to every process group, SIGTERM after the first timeout, SIGKILL after the
+        second; returns when every process (and its group) is gone."""
+        if self._thread is None:
+            return
+        self._stop_requested = True
+        self._wake.set()
+        self._thread.join()
+        for process in self._processes:
+            if process.pump is not None:
+                process.pump.join(timeout=1.0)  # the last lines a node printed
+            process.output.close()
+
+    def __enter__(self) -> "LaunchSession":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    # -- preparation (caller's thread) --
+
+    def _ros2(self) -> str | None:
+        return shutil.which("ros2", path=self.base_env.get("PATH", os.defpath))
+
+    def _child_env(self, extra: Mapping[str, str]) -> dict[str, str]:
+        env = dict(self.base_env)
+        env["AMENT_PREFIX_PATH"] = ament.ament_prefix_path(self.base_env)
+        env.setdefault("PYTHONUNBUFFERED", "1")  # node output reaches the log line by line
+        env.update(extra)
+        return env
+
+    def _prepare(self) -> list[ProcessSpec]:
+        try:
+            ament.ensure_ament_prefix()
+        except OSError:
+            pass  # a read-only environment: fleet_nodes lookups will say what is missing
+        ros2 = self._ros2()
+        backend = self.requested_backend
+        if backend == "auto":
+            # Robot isolation is ours: only the embedded runner can share processes.
+            backend = "ros2" if ros2 is not None and self.isolation == "process" else "embedded"
+        if backend == "ros2":
+            if ros2 is None:
+                raise FleetError("backend 'ros2' needs the `ros2` command on PATH")
+            if self.isolation != "process":
+                raise FleetError("isolation 'robot' needs the embedded backend")
+            if not self.path.is_file():
+                raise LaunchFileError("launch file not found", Location(self.path))
+            self.backend = "ros2"
+            return [self._ros2_spec(ros2)]
+        self.backend = "embedded"
+        try:
+            self.plan = load_launch_file(
+                self.path,
+                self.launch_args,
+                env=self.base_env,
+                params_dir=self.log_dir / "params",
+                ament_search_path=ament.ament_prefix_path(self.base_env),
+            )
+        except LaunchFileError as problem:
+            if self.requested_backend == "auto" and ros2 is None:
+                problem.message += " (and `ros2` is not on PATH to run it with ros2 launch)"
+            raise
+        return plan_processes(self.plan.nodes, self.isolation)
+
+    def _ros2_spec(self, ros2: str) -> ProcessSpec:
+        arguments = [f"{name}:={value}" for name, value in self.launch_args.items()]
+        return ProcessSpec(
+            name="ros2-launch-1", cmd=[ros2, "launch", str(self.path), *arguments], echo=True
+        )
+
+    def _echo_for(self, process_name: str) -> Callable[[str], None]:
+        on_line = self.on_line
+        assert on_line is not None
+        return lambda line: on_line(process_name, line)
+
+    def _find(self, node: str) -> _Supervised:
+        for process in self._processes:
+            names = {process.spec.name}
+            for launch in process.spec.nodes:
+                names.update(name for name in (launch.name, launch.fqn) if name)
+            if node in names:
+                return process
+        raise KeyError(f"no node or process named {node!r} in {self.path.name}")
+
+    # -- the session thread --
+
+    def _run(self) -> None:
+        try:
+            for process in self._processes:
+                self._spawn(process)
+        except BaseException as problem:  # e.g. a missing interpreter: stop what started
+            self._start_error = FleetError(f"cannot start {process.spec.name}: {problem}")
+            self._stop_requested = True
+        finally:
+            self._started.set()
+        stop_began: float | None = None
+        signals_sent = 0
+        while True:
+            now = time.monotonic()
+            with self._lock:
+                due = [process for process in self._processes if self._check(process, now)]
+            for process in due:
+                self._respawn(process)
+            if self._stop_requested:
+                if stop_began is None:
+                    stop_began = now
+                if all(process.finished() for process in self._processes):
+                    break
+                # SIGINT at once, SIGTERM after sigterm_after, SIGKILL sigkill_after later.
+                stage = 1
+                if now - stop_began >= self.sigterm_after:
+                    stage = 2
+                if now - stop_began >= self.sigterm_after + self.sigkill_after:
+                    stage = 3
+                if stage > signals_sent:
+                    signum = {1: signal.SIGINT, 2: signal.SIGTERM, 3: signal.SIGKILL}[stage]
+                    for process in self._processes:
+                        if not process.finished():
+                            signal_group(process.popen.pid, signum)
+                    signals_sent = stage
+            self._wake.wait(POLL_INTERVAL)
+            self._wake.clear()
+        with self._lock:
+            for process in self._processes:
+                self._check(process, time.monotonic())
+                if process.state in (RUNNING, STOPPING, BACKOFF, STARTING):
+                    process.state = STOPPED
+
+    def _respawn(self, process: _Supervised) -> None:
+        # An exception must not end this thread: its exit would SIGKILL every other node.
+        try:
+            self._spawn(process)
+        except OSError as problem:
+            process.output.add(f"fleet: cannot respawn {process.spec.name}: {problem}")
+            with self._lock:
+                process.state = FAILED
+
+    def _spawn(self, process: _Supervised) -> None:
+        spec = process.spec
+        env = self._child_env(spec.env)
+        popen = spawn(spec.cmd, env)
+        with self._lock:
+            process.popen = popen
+            process.state = RUNNING
+            process.exit_code = None
+            process.started_at = time.monotonic()
+            process.restart_at = None
+        process.pump = process.output.follow(popen.stdout)
+
+    def _check(self, process: _Supervised, now: float) -> bool:
+        """Notice an exit and decide on a respawn (called with the lock held).  Returns True
+        when the process is due to be started again."""
+        if process.state in (RUNNING, STOPPING) and process.popen.poll() is not None:
+            process.exit_code = process.popen.returncode
+            if self._stop_requested:
+                process.state = STOPPED
+                return False
+            # The node is gone; whatever it left in its group goes too.
+            signal_group(process.popen.pid, signal.SIGKILL)
+            if not process.spec.respawn:
+                process.state = EXITED if process.exit_code == 0 else FAILED
+                return False
+            ran_for = now - process.started_at
+            process.failures_in_row = 1 if ran_for >= STABLE_AFTER else process.failures_in_row + 1
+            process.state = BACKOFF
+            process.restart_at = now + backoff_delay(
+                process.spec.respawn_delay, process.failures_in_row
+            )
+        elif process.state == RUNNING and self._stop_requested:
+            process.state = STOPPING
+        elif process.state == BACKOFF:
+            if self._stop_requested:
+                process.state = STOPPED
+            elif now >= process.restart_at:
+                process.restarts += 1
+                return True
+        return False

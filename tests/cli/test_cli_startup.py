@@ -1,0 +1,31 @@
+"""`fleet --help` stays fast: no heavy module is imported until a command needs it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = ["rclpy", "zenoh", "pybullet", "numpy", "matplotlib", "pydantic", "yaml", "jinja2", "psutil"]
+
+PROBE = """
+import json, sys
+from fleet.cli import app
+from typer.main import get_command
+get_command(app)  # build the whole command tree, as --help does
+print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in {heavy})))
+"""
+
+
+def test_help_imports_no_heavy_module():
+    result = subprocess.run([sys.executable, "-c", PROBE.format(heavy=set(HEAVY))],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout) == []
+
+
+def test_help_lists_the_commands():
+    result = subprocess.run([sys.executable, "-m", "fleet", "--help"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    for command in ("render", "run", "deploy", "status", "world"):
+        assert command in result.stdout

@@ -1,0 +1,118 @@
+"""The embedded runner with the real fleet_nodes nodes, checked from rclpy in an isolated domain."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from fleet.runtime.supervisor import LaunchSession
+
+pytestmark = pytest.mark.integration
+
+LAUNCH = """
+launch:
+- arg: {name: speed, default: '0.8'}
+- group:
+  - push_ros_namespace: {namespace: robot1}
+  - node:
+      pkg: fleet_nodes
+      exec: controller
+      name: controller
+      param:
+      - {from: $(dirname)/robot1.params.yaml}
+      - {name: max_speed, value: $(var speed)}
+  - node:
+      pkg: fleet_nodes
+      exec: battery
+      name: battery
+      param:
+      - {from: $(dirname)/robot1.params.yaml}
+- node: {pkg: fleet_nodes, exec: battery, name: battery, namespace: robot2}
+"""
+PARAMS = """
+/robot1/controller:
+  ros__parameters:
+    max_speed: 0.3
+    goal_tolerance: 0.2
+/robot1/battery:
+  ros__parameters:
+    capacity: 42.0
+"""
+EXPECTED_NODES = {("controller", "/robot1"), ("battery", "/robot1"), ("battery", "/robot2")}
+
+
+class Probe:
+    """An rclpy context of the test's own with one node to look at the graph."""
+
+    def __init__(self):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self.context = Context()
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("runtime_probe", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def nodes(self) -> set[tuple[str, str]]:
+        return set(self.node.get_node_names_and_namespaces())
+
+    def wait_for_nodes(self, expected: set, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if expected <= self.nodes():
+                return
+            self.executor.spin_once(timeout_sec=0.1)
+        raise AssertionError(f"nodes {expected - self.nodes()} not seen; graph: {self.nodes()}")
+
+    def parameters(self, node: str, names: list[str]) -> list:
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+
+        client = self.node.create_client(GetParameters, f"{node}/get_parameters")
+        assert client.wait_for_service(timeout_sec=20), f"{node}/get_parameters not available"
+        future = client.call_async(GetParameters.Request(names=names))
+        self.executor.spin_until_future_complete(future, timeout_sec=20)
+        assert future.done(), f"no answer from {node}/get_parameters"
+        return [parameter_value_to_python(value) for value in future.result().values]
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+@pytest.fixture
+def probe(ros_env):
+    probe = Probe()
+    yield probe
+    probe.close()
+
+
+@pytest.mark.parametrize("isolation", ["process", "robot"])
+def test_namespaced_fleet_nodes_with_parameters(ros_env, probe, tmp_path, isolation):
+    (tmp_path / "robot1.params.yaml").write_text(PARAMS)
+    path = tmp_path / "robot1.launch.yaml"
+    path.write_text(LAUNCH)
+    session = LaunchSession(path, {"speed": "1.25"}, env=ros_env, log_dir=tmp_path / "logs",
+                            isolation=isolation, backend="embedded")  # fmt: skip
+    with session:
+        probe.wait_for_nodes(EXPECTED_NODES)
+        statuses = session.status()
+        assert {status.state for status in statuses} == {"running"}, [
+            (status.process, session.tail(status.process)) for status in statuses
+        ]
+        # Robot isolation: every fleet_nodes controller/battery/safety of the launch file shares
+        # one process (a rendered launch file holds one robot).
+        expected_processes = 3 if isolation == "process" else 1
+        assert len({status.pid for status in statuses}) == expected_processes
+        # The inline parameter comes after the file, so it wins; the file sets the rest.
+        assert probe.parameters("/robot1/controller", ["max_speed", "goal_tolerance"]) == [1.25, 0.2]
+        assert probe.parameters("/robot1/battery", ["capacity"]) == [42.0]
+        assert probe.parameters("/robot2/battery", ["capacity"]) == [100.0]
+    assert {status.state for status in session.status()} == {"stopped"}
+    # Stopped by SIGINT, the nodes shut down by themselves (no SIGTERM/SIGKILL needed).
+    assert {status.exit_code for status in session.status()} <= {0, -2}

@@ -1,0 +1,89 @@
+"""`fleet run`: foreground runner, screen output, exit codes, clean stop on SIGINT/SIGTERM."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from runtime_helpers import pid_alive, wait_for
+
+
+def fleet_run(prefix, *args, **kwargs) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "fleet", "run", *map(str, args)],
+        env=prefix.env(PATH="/usr/bin:/bin"),  # no ros2 here: the embedded backend
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **kwargs,
+    )
+
+
+def test_bad_file_is_one_line_and_exit_2(prefix, write_launch, tmp_path):
+    path = write_launch("launch:\n- node: {pkg: demo, exec: x}\n- teleport: {}\n")
+    runner = fleet_run(prefix, path, "--log-dir", tmp_path / "logs")
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"fleet: error: {path}:3: unknown action 'teleport'")
+    assert out == ""
+
+
+def test_bad_launch_argument_syntax(prefix, write_launch, tmp_path):
+    path = write_launch("launch: []\n")
+    runner = fleet_run(prefix, path, "robot=r1", "--log-dir", tmp_path / "logs")
+    _, err = runner.communicate(timeout=60)
+    assert runner.returncode == 2
+    assert "name:=value" in err
+
+
+def test_screen_output_and_exit_codes(prefix, write_launch, tmp_path):
+    prefix.add("hello", '#!/bin/sh\necho "hello $1"\n')
+    prefix.add("fail", "#!/bin/sh\necho oops\nexit 5\n")
+    path = write_launch("""
+        launch:
+        - arg: {name: who, default: nobody}
+        - node: {pkg: demo, exec: hello, args: $(var who), output: screen}
+        - node: {pkg: demo, exec: hello, args: quiet}
+    """)
+    runner = fleet_run(prefix, path, "who:=world", "--log-dir", tmp_path / "logs")
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 0, err
+    assert out == "[hello-1] hello world\n"
+    assert "hello-1" in err and "hello-2" in err  # the start-up status
+    assert (tmp_path / "logs" / "hello-2.log").read_text() == "hello quiet\n"
+
+    failing = write_launch("launch:\n- node: {pkg: demo, exec: fail, output: screen}\n", "fail.launch.yaml")
+    runner = fleet_run(prefix, failing, "--log-dir", tmp_path / "logs2")
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 1
+    assert out == "[fail-1] oops\n"
+    assert "fail-1" in err and "exit code 5" in err
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
+    prefix.add("sleeper", '#!/bin/sh\necho "pid $$"\nexec sleep 100\n')
+    path = write_launch("""
+        launch:
+        - node: {pkg: demo, exec: sleeper, output: screen, respawn: 'true'}
+        - node: {pkg: demo, exec: sleeper, output: screen}
+    """)
+    runner = fleet_run(prefix, path, "--log-dir", tmp_path / "logs")
+    pids = []
+    try:
+        while len(pids) < 2:
+            line = runner.stdout.readline()
+            assert line, "fleet run ended early"
+            pids.append(int(line.split()[-1]))
+        runner.send_signal(signum)
+        runner.wait(timeout=20)
+        assert runner.returncode == 0, runner.stderr.read()
+        wait_for(lambda: not any(pid_alive(pid) for pid in pids), timeout=5)
+    finally:
+        runner.kill()
+        runner.communicate()

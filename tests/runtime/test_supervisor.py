@@ -1,0 +1,348 @@
+"""The supervisor with small real processes: logs, respawn, stop escalation, no leftovers."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from fleet.errors import FleetError, LaunchFileError
+from fleet.runtime import supervisor
+from fleet.runtime.processes import group_members
+from fleet.runtime.supervisor import LaunchSession, backoff_delay
+
+from runtime_helpers import pid_alive, wait_for
+
+CHATTY = """\
+#!/bin/sh
+echo "started with $*"
+for i in 1 2 3 4 5; do echo "line $i"; done
+echo "to stderr" >&2
+exec sleep 100
+"""
+SLEEPER = "#!/bin/sh\nexec sleep 100\n"
+# Ignores SIGINT (and its `exec`ed sleep inherits that), dies on SIGTERM.
+DEAF_TO_SIGINT = "#!/bin/sh\ntrap '' INT\necho ready\nexec sleep 100\n"
+# Ignores SIGINT and SIGTERM: only SIGKILL ends it.
+STUBBORN = "#!/bin/sh\ntrap '' INT TERM\necho ready\nexec sleep 100\n"
+# A node with a child process of its own.
+PARENT = "#!/bin/sh\nsleep 100 &\necho child $!\nwait\n"
+
+
+def session_for(prefix, write_launch, tmp_path, nodes: str, **kwargs) -> LaunchSession:
+    path = write_launch("launch:\n" + textwrap.dedent(nodes).lstrip())
+    kwargs.setdefault("stop_timeouts", (1.0, 1.0))
+    return LaunchSession(path, env=prefix.env(), log_dir=tmp_path / "logs",
+                         backend="embedded", **kwargs)  # fmt: skip
+
+
+def test_logs_are_captured_and_tailed(prefix, write_launch, tmp_path):
+    prefix.add("chatty", CHATTY)
+    screen = []
+    session = session_for(
+        prefix, write_launch, tmp_path,
+        "- node: {pkg: demo, exec: chatty, name: talk, namespace: r1, output: screen}\n"
+        "- node: {pkg: demo, exec: chatty, name: quiet}\n",
+        on_line=lambda process, line: screen.append((process, line)),
+    )  # fmt: skip
+    with session:
+        wait_for(lambda: "to stderr" in session.tail("talk") and "to stderr" in session.tail("quiet"))
+        lines = session.tail("/r1/talk", 100)
+        assert lines[0].startswith("started with --ros-args -r __node:=talk -r __ns:=/r1")
+        assert lines[1:6] == [f"line {i}" for i in range(1, 6)]
+        assert session.tail("chatty-1", 2) == ["line 5", "to stderr"]
+        log_text = (tmp_path / "logs" / "chatty-1.log").read_text()
+        assert "line 3\n" in log_text and "to stderr\n" in log_text
+        assert "line 3\n" in (tmp_path / "logs" / "chatty-2.log").read_text()
+    # Only output: screen is echoed, with its process name.
+    assert ("chatty-1", "line 1") in screen
+    assert not [entry for entry in screen if entry[0] == "chatty-2"]
+    with pytest.raises(KeyError):
+        session.tail("nobody")
+
+
+def test_status_fields(prefix, write_launch, tmp_path):
+    prefix.add("sleeper", SLEEPER)
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: sleeper, name: s, namespace: n}\n")
+    with session:
+        time.sleep(0.2)
+        (status,) = session.status()
+        assert (status.name, status.fqn, status.state, status.restarts) == ("s", "/n/s", "running", 0)
+        assert status.pid and pid_alive(status.pid) and status.exit_code is None
+        assert status.uptime > 0 and status.cmd[0].endswith("lib/demo/sleeper")
+        assert status.process == "sleeper-1"
+        pid = status.pid
+    (status,) = session.status()
+    assert status.state == "stopped" and status.pid is None and not pid_alive(pid)
+
+
+def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
+    prefix.add("sleeper", SLEEPER)
+    session = session_for(prefix, write_launch, tmp_path,
+                          "- node: {pkg: demo, exec: sleeper, name: s, respawn: 'true'}\n")  # fmt: skip
+    with session:
+        first = session.status()[0].pid
+        os.kill(first, signal.SIGKILL)
+        status = wait_for(lambda: [s for s in session.status() if s.state == "running" and s.pid != first])
+        assert status[0].restarts == 1
+        assert not pid_alive(first)
+        second = status[0].pid
+        os.kill(second, signal.SIGKILL)
+        status = wait_for(lambda: [s for s in session.status() if s.state == "running" and s.pid != second])
+        assert status[0].restarts == 2
+
+
+def test_respawn_waits_respawn_delay(prefix, write_launch, tmp_path):
+    prefix.add("quitter", "#!/bin/sh\necho bye\nexit 3\n")
+    session = session_for(prefix, write_launch, tmp_path,
+                          "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 0.5}\n")  # fmt: skip
+    with session:
+        wait_for(lambda: session.status()[0].state == "backoff")
+        assert session.status()[0].exit_code == 3
+        assert not session.done()
+        time.sleep(0.3)
+        assert session.status()[0].restarts == 0
+        wait_for(lambda: session.status()[0].restarts >= 1, timeout=3)
+
+
+def test_backoff_grows_exponentially():
+    assert backoff_delay(2.0, 1) == 2.0
+    assert backoff_delay(2.0, 2) == 4.0
+    assert backoff_delay(2.0, 3) == 8.0
+    assert backoff_delay(0.0, 1) == 0.0
+    assert backoff_delay(0.0, 2) == supervisor.MIN_BACKOFF * 2
+    assert backoff_delay(1.0, 20) == supervisor.MAX_BACKOFF
+    assert backoff_delay(60.0, 5) == 60.0
+
+
+def test_exit_without_respawn_is_final(prefix, write_launch, tmp_path):
+    prefix.add("ok", "#!/bin/sh\necho done\n")
+    prefix.add("bad", "#!/bin/sh\necho broken >&2\nexit 4\n")
+    session = session_for(prefix, write_launch, tmp_path,
+                          "- node: {pkg: demo, exec: ok, name: ok}\n- node: {pkg: demo, exec: bad, name: bad}\n")  # fmt: skip
+    with session:
+        assert session.wait(timeout=10)
+        states = {status.name: (status.state, status.exit_code) for status in session.status()}
+        assert states == {"ok": ("exited", 0), "bad": ("failed", 4)}
+        assert [status.name for status in session.failed()] == ["bad"]
+        assert session.tail("bad") == ["broken"]
+
+
+def test_stop_sends_sigterm_to_a_child_ignoring_sigint(prefix, write_launch, tmp_path):
+    prefix.add("deaf", DEAF_TO_SIGINT)
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: deaf}\n",
+                          stop_timeouts=(0.5, 5.0))  # fmt: skip
+    session.start()
+    wait_for(lambda: session.tail("deaf-1"))
+    began = time.monotonic()
+    session.stop()
+    took = time.monotonic() - began
+    assert 0.4 < took < 3.0
+    assert session.status()[0].exit_code == -signal.SIGTERM
+
+
+def test_stop_sends_sigkill_to_a_child_ignoring_sigterm(prefix, write_launch, tmp_path):
+    prefix.add("stubborn", STUBBORN)
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: stubborn}\n",
+                          stop_timeouts=(0.3, 0.5))  # fmt: skip
+    session.start()
+    wait_for(lambda: session.tail("stubborn-1"))
+    pid = session.status()[0].pid
+    began = time.monotonic()
+    session.stop()
+    took = time.monotonic() - began
+    assert 0.7 < took < 3.0
+    assert session.status()[0].exit_code == -signal.SIGKILL
+    assert not pid_alive(pid)
+
+
+def test_stop_is_quick_for_well_behaved_nodes(prefix, write_launch, tmp_path):
+    prefix.add("sleeper", SLEEPER)
+    session = session_for(prefix, write_launch, tmp_path,
+                          "".join(f"- node: {{pkg: demo, exec: sleeper, name: s{i}}}\n" for i in range(5)),
+                          stop_timeouts=(5.0, 10.0))  # fmt: skip
+    session.start()
+    began = time.monotonic()
+    session.stop()
+    assert time.monotonic() - began < 2.0
+    assert {status.exit_code for status in session.status()} == {-signal.SIGINT}
+
+
+def test_nothing_left_after_stop(prefix, write_launch, tmp_path):
+    prefix.add("parent", PARENT)
+    session = session_for(prefix, write_launch, tmp_path,
+                          "- node: {pkg: demo, exec: parent, respawn: 'true'}\n")  # fmt: skip
+    session.start()
+    line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
+    child = int(line.split()[1])
+    leader = session.status()[0].pid
+    assert set(group_members(leader)) >= {leader, child}
+    session.stop()
+    assert group_members(leader) == []
+    assert not pid_alive(leader) and not pid_alive(child)
+
+
+def test_node_exit_kills_what_it_left_in_its_group(prefix, write_launch, tmp_path):
+    prefix.add("parent", PARENT)
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent}\n")
+    with session:
+        line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
+        child = int(line.split()[1])
+        os.kill(session.status()[0].pid, signal.SIGKILL)
+        wait_for(lambda: not pid_alive(child), timeout=5)
+
+
+SUPERVISING_SCRIPT = """
+import json, sys, time
+from fleet.runtime.supervisor import LaunchSession
+session = LaunchSession(sys.argv[1], log_dir=sys.argv[2], backend="embedded",
+                        isolation=sys.argv[3])
+session.start()
+time.sleep(0.3)  # let the shells exec
+print(json.dumps([status.pid for status in session.status()]), flush=True)
+time.sleep(300)
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "robot"])
+def test_no_orphans_when_the_supervisor_is_sigkilled(prefix, write_launch, tmp_path, isolation):
+    for exe in ("controller", "battery", "composite"):
+        prefix.add(exe, SLEEPER, package="fleet_nodes")
+    prefix.add("sleeper", SLEEPER)
+    path = write_launch("""
+        launch:
+        - node: {pkg: demo, exec: sleeper, name: a}
+        - node: {pkg: fleet_nodes, exec: controller, name: controller, namespace: r1}
+        - node: {pkg: fleet_nodes, exec: battery, name: battery, namespace: r1}
+    """)
+    runner = subprocess.Popen(
+        [sys.executable, "-c", SUPERVISING_SCRIPT, str(path), str(tmp_path / "logs"), isolation],
+        env=prefix.env(), stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        pids = set(json.loads(runner.stdout.readline()))
+        assert len(pids) == (3 if isolation == "process" else 2)
+        assert all(pid_alive(pid) for pid in pids)
+        runner.kill()
+        runner.wait(timeout=10)
+        wait_for(lambda: not any(pid_alive(pid) for pid in pids), timeout=5)
+    finally:
+        runner.kill()
+        runner.wait()
+
+
+def test_invalid_file_starts_nothing(prefix, write_launch, tmp_path):
+    prefix.add("sleeper", SLEEPER)
+    session = session_for(prefix, write_launch, tmp_path,
+                          "- node: {pkg: demo, exec: sleeper}\n- bogus: {}\n")  # fmt: skip
+    with pytest.raises(LaunchFileError, match="unknown action 'bogus'"):
+        session.start()
+    assert session.status() == []
+    session.stop()
+
+
+def test_robot_isolation_shares_one_process(prefix, write_launch, tmp_path):
+    prefix.add("composite", CHATTY, package="fleet_nodes")
+    for exe in ("controller", "battery", "safety"):
+        prefix.add(exe, SLEEPER, package="fleet_nodes")
+    session = session_for(prefix, write_launch, tmp_path, """
+        - group:
+          - push_ros_namespace: {namespace: robot1}
+          - node: {pkg: fleet_nodes, exec: controller, name: controller}
+          - node: {pkg: fleet_nodes, exec: battery, name: battery}
+          - node: {pkg: fleet_nodes, exec: safety, name: safety}
+    """, isolation="robot")  # fmt: skip
+    with session:
+        statuses = session.status()
+        assert [status.fqn for status in statuses] == ["/robot1/controller", "/robot1/battery", "/robot1/safety"]
+        assert len({status.pid for status in statuses}) == 1
+        assert {status.process for status in statuses} == {"composite-1"}
+        first = wait_for(lambda: session.tail("battery"))[0]
+        assert first == (
+            "started with --fleet-node controller --ros-args -r __node:=controller -r __ns:=/robot1 "
+            "--fleet-node battery --ros-args -r __node:=battery -r __ns:=/robot1 "
+            "--fleet-node safety --ros-args -r __node:=safety -r __ns:=/robot1"
+        )
+
+
+def test_bad_options_are_refused(prefix, write_launch, tmp_path):
+    path = write_launch("launch: []\n")
+    with pytest.raises(FleetError, match="isolation"):
+        LaunchSession(path, isolation="thread")
+    with pytest.raises(FleetError, match="backend"):
+        LaunchSession(path, backend="docker")
+
+
+# -- the ros2 backend, with a stand-in `ros2` command ----------------------------------------
+
+FAKE_ROS2 = """\
+#!/bin/sh
+echo "fake ros2 $*"
+exec sleep 100
+"""
+
+
+@pytest.fixture
+def fake_ros2(tmp_path):
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "ros2").write_text(FAKE_ROS2)
+    (bin_dir / "ros2").chmod(0o755)
+    return bin_dir
+
+
+def test_ros2_backend_runs_ros2_launch(prefix, write_launch, tmp_path, fake_ros2):
+    path = write_launch("launch: [{node: {pkg: demo, exec: anything_ros2_knows}}]\n")
+    env = prefix.env(PATH=f"{fake_ros2}:{os.environ['PATH']}")
+    session = LaunchSession(path, {"robot": "r1"}, env=env, log_dir=tmp_path / "logs",
+                            backend="auto", stop_timeouts=(1.0, 1.0))  # fmt: skip
+    with session:
+        assert session.backend == "ros2"
+        (status,) = session.status()
+        assert status.cmd == [str(fake_ros2 / "ros2"), "launch", str(path), "robot:=r1"]
+        line = wait_for(lambda: session.tail(status.process))[0]
+        assert line == f"fake ros2 launch {path} robot:=r1"
+        pid = status.pid
+    assert not pid_alive(pid)
+
+
+def test_auto_with_robot_isolation_uses_embedded(prefix, write_launch, tmp_path, fake_ros2):
+    prefix.add("sleeper", SLEEPER)
+    path = write_launch("launch: [{node: {pkg: demo, exec: sleeper}}]\n")
+    env = prefix.env(PATH=f"{fake_ros2}:{os.environ['PATH']}")
+    with LaunchSession(path, env=env, log_dir=tmp_path / "logs", isolation="robot") as session:
+        assert session.backend == "embedded"
+    with pytest.raises(FleetError, match="needs the embedded backend"):
+        LaunchSession(path, env=env, isolation="robot", backend="ros2").start()
+
+
+def test_without_ros2_unsupported_files_are_refused_clearly(prefix, write_launch, tmp_path):
+    path = write_launch("launch: [{include: {file: other.launch.yaml}}]\n")
+    env = prefix.env(PATH="/usr/bin:/bin")
+    with pytest.raises(LaunchFileError) as caught:
+        LaunchSession(path, env=env, log_dir=tmp_path / "logs").start()
+    assert "unknown action 'include'" in str(caught.value)
+    assert "`ros2` is not on PATH" in str(caught.value)
+    with pytest.raises(FleetError, match="needs the `ros2` command"):
+        LaunchSession(path, env=env, backend="ros2").start()
+
+
+def test_failed_respawn_does_not_take_the_others_down(prefix, write_launch, tmp_path):
+    doomed = prefix.add("doomed", SLEEPER)
+    prefix.add("sleeper", SLEEPER)
+    session = session_for(prefix, write_launch, tmp_path,
+                          "- node: {pkg: demo, exec: doomed, respawn: 'true', respawn_delay: 0.3}\n"
+                          "- node: {pkg: demo, exec: sleeper}\n")  # fmt: skip
+    with session:
+        doomed_pid, other_pid = [status.pid for status in session.status()]
+        doomed.unlink()
+        os.kill(doomed_pid, signal.SIGKILL)
+        wait_for(lambda: session.status()[0].state == "failed")
+        assert "cannot respawn doomed-1" in session.tail("doomed-1")[-1]
+        assert session.status()[1].state == "running" and pid_alive(other_pid)
