@@ -1,0 +1,363 @@
+"""The world process: main loop (physics, sensors, pacing), live reload of world.yaml, status.
+
+Everything runs in the main thread except the rclpy executor (see ros_bridge).  Per physics tick
+the loop only applies commands and steps; sensors, contacts and bookkeeping run on their own
+(sim-time) schedules, wall-clock chores (status file, reload check) on wall-clock schedules.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import signal
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleet.world import lidar
+from fleet.world.description import ObstacleSpec, Pose2D, RobotSpec, WorldError, WorldSpec, load_world
+from fleet.world.geometry import obstacle_shape, robot_shape
+from fleet.world.physics import PhysicsWorld, SpawnError
+from fleet.world.status import (CONTACTS_KEPT, SCAN_HITS_MAX, Trail, last_poses, model_dict, obstacle_dict,
+                                read_status, write_atomic)
+
+log = logging.getLogger("fleet.world")
+
+SLOT_RATE = 60.0  # Hz (sim): lidar batches, contact checks and trail samples run on these ticks
+STATUS_PERIOD = 0.25  # s (wall) between status file writes
+RELOAD_PERIOD = 0.5  # s (wall) between world.yaml mtime checks
+MAX_LAG = 0.5  # s: in real-time mode, a world further behind than this stops trying to catch up
+
+
+@dataclass
+class _Robot:
+    spec: RobotSpec
+    channel: Any  # ros_bridge.RobotChannel, or None without ROS
+    angles: np.ndarray
+    next_odom: float
+    next_scan: float
+    trail: Trail = field(default_factory=Trail)
+    hits: tuple | None = None  # (x, y, yaw, angles, ranges) of the latest scan
+    velocity: tuple[float, float] = (0.0, 0.0)
+
+
+class WorldApp:
+    def __init__(self, config: str | Path, status_file: str | Path | None = None, *,
+                 as_fast_as_possible: bool = False, bridge: Any = None) -> None:
+        self.config = Path(config)
+        self.status_file = Path(status_file) if status_file else None
+        self.as_fast_as_possible = as_fast_as_possible
+        self.spec: WorldSpec = load_world(self.config)  # WorldError: the caller exits 2
+        self._config_stamp = self._stamp()
+        self.bridge = bridge
+        self.physics = PhysicsWorld(self.spec.physics_rate)
+        self.robots: dict[str, _Robot] = {}
+        self.errors: dict[str, dict[str, Any]] = {}  # key -> {"sim_time", "message"}: current problems
+        self.contacts_count = 0
+        self.contacts_last: deque[dict] = deque(maxlen=CONTACTS_KEPT)
+        self.stopping = False
+        self._obstacle_shapes: list = []
+        self._tick = 0
+        self._slot_every = max(1, round(self.spec.physics_rate / SLOT_RATE))
+        self._next_clock = 0.0
+        self._rtf_window: deque[tuple[float, float]] = deque()
+        self.real_time_factor = 0.0
+        for obstacle in self.spec.obstacles:
+            self._add_obstacle(obstacle)
+        restored = last_poses(read_status(self.status_file)) if self.status_file else {}
+        for robot in self.spec.robots:
+            self._spawn(robot, restored.get(robot.name))
+
+    # -- robots and obstacles ----------------------------------------------------------------------
+
+    def _add_obstacle(self, spec: ObstacleSpec) -> None:
+        self.physics.add_obstacle(spec)
+        self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
+
+    def _remove_obstacle(self, name: str) -> None:
+        self.physics.remove_obstacle(name)
+        self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
+
+    def _error(self, key: str, message: str) -> None:
+        if self.errors.get(key, {}).get("message") != message:
+            log.error(message)
+            self.errors[key] = {"sim_time": round(self.physics.sim_time, 3), "message": message}
+
+    def _spawn(self, spec: RobotSpec, restored: Pose2D | None = None) -> bool:
+        """Place a robot (at its restored pose when that spot is free, else at its configured one);
+        a refused spawn is reported under errors and retried at the next reload check."""
+        pose = spec.pose
+        if restored is not None and self.physics.placement_problem(spec.name, spec.model, restored) is None:
+            pose = restored
+        try:
+            self.physics.add_robot(spec.name, spec.model, pose)
+        except SpawnError as error:
+            self._error(f"robot:{spec.name}", f"robot '{spec.name}' not spawned: {error}")
+            return False
+        self.errors.pop(f"robot:{spec.name}", None)
+        channel = self.bridge.add_robot(spec) if self.bridge is not None else None
+        now = self.physics.sim_time
+        lidar_spec = spec.lidar
+        period = 1.0 / lidar_spec.rate
+        # Spread the scans of many robots over the scan period instead of all on one tick.
+        phase = (len(self.robots) * 0.137 % 1.0) * period
+        self.robots[spec.name] = _Robot(
+            spec=spec, channel=channel,
+            angles=lidar.beam_angles(lidar_spec.angle_min, lidar_spec.increment, lidar_spec.beams),
+            next_odom=now, next_scan=now + phase)
+        log.info("robot '%s' (%s) spawned at (%.2f, %.2f, yaw %.2f)", spec.name, spec.model.type, pose.x, pose.y, pose.yaw)
+        return True
+
+    def _despawn(self, name: str) -> None:
+        self.robots.pop(name, None)
+        if name in self.physics.robots:
+            self.physics.remove_robot(name)
+        if self.bridge is not None:
+            self.bridge.remove_robot(name)
+        log.info("robot '%s' removed", name)
+
+    # -- reload ------------------------------------------------------------------------------------
+
+    def _stamp(self) -> tuple[int, int] | None:
+        try:
+            st = os.stat(self.config)
+        except OSError:
+            return None
+        return st.st_mtime_ns, st.st_size
+
+    def check_reload(self) -> None:
+        stamp = self._stamp()
+        if stamp != self._config_stamp:
+            self._config_stamp = stamp
+            try:
+                new = load_world(self.config)
+            except WorldError as error:
+                self._error("config", f"world description not applied (the world keeps running as before): {error}")
+                return
+            self.errors.pop("config", None)
+            self.apply(new)
+        else:
+            # Retry refused spawns: the spot may have been cleared since.
+            for spec in self.spec.robots:
+                if spec.name not in self.robots:
+                    self._spawn(spec)
+
+    def apply(self, new: WorldSpec) -> None:
+        """Make the running world match `new` without touching what did not change."""
+        old = self.spec
+        if new.physics_rate != old.physics_rate:
+            log.warning("physics_rate change (%g -> %g Hz) applies at the next restart", old.physics_rate, new.physics_rate)
+        old_obstacles = {o.name: o for o in old.obstacles}
+        new_obstacles = {o.name: o for o in new.obstacles}
+        for name, spec in old_obstacles.items():
+            if new_obstacles.get(name) != spec and name in self.physics.obstacles:
+                self._remove_obstacle(name)
+        for name, spec in new_obstacles.items():
+            if name not in self.physics.obstacles:
+                self._add_obstacle(spec)
+        wanted = {r.name: r for r in new.robots}
+        for name in list(self.robots):
+            if name not in wanted:
+                self._despawn(name)
+        for key in [k for k in self.errors if k.startswith("robot:") and k[6:] not in wanted]:
+            self.errors.pop(key)
+        self.spec = WorldSpec(**{**new.__dict__, "physics_rate": old.physics_rate})
+        for name, spec in wanted.items():
+            current = self.robots.get(name)
+            if current is None:
+                self._spawn(spec)
+            elif not current.spec.same_except_pose(spec):
+                # A changed model, lidar or rate: rebuild the robot where it stands now.
+                x, y, yaw = self.physics.robots[name].pose()
+                self._despawn(name)
+                self._spawn(spec, Pose2D(x, y, yaw))
+
+    # -- the loop ----------------------------------------------------------------------------------
+
+    def step(self) -> None:
+        """One physics tick plus whatever sensors are due."""
+        physics = self.physics
+        now = physics.sim_time
+        bridge = self.bridge
+        if bridge is not None:
+            bridge.sim_time = now
+            if self._tick % self._slot_every == 0:
+                # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds at
+                # most one slot of latency and saves a call per robot per tick.
+                for name, robot in self.robots.items():
+                    physics.command(name, *robot.channel.current_command(now))
+        physics.step()
+        self._tick += 1
+        now = physics.sim_time
+        stamp = None
+        for robot in self.robots.values():
+            if now >= robot.next_odom:
+                robot.next_odom = max(robot.next_odom + 1.0 / robot.spec.odom_rate, now)
+                state = physics.state(robot.spec.name)
+                robot.velocity = (state.linear, state.angular)
+                if robot.channel is not None:
+                    if stamp is None:
+                        stamp = _stamp(now)
+                    robot.channel.publish_odom(stamp, state.x, state.y, state.yaw, state.linear, state.lateral, state.angular)
+        if self._tick % self._slot_every == 0:
+            self._slot(now)
+        if bridge is not None and now >= self._next_clock:
+            self._next_clock = max(self._next_clock + 1.0 / self.spec.clock_rate, now)
+            bridge.publish_clock(now)
+
+    def _slot(self, now: float) -> None:
+        """Lidars due now (one scene for all of them), contacts, trails."""
+        due = [robot for robot in self.robots.values() if now >= robot.next_scan]
+        poses = {name: body.pose() for name, body in self.physics.robots.items()}
+        if due:
+            shapes = list(self._obstacle_shapes)
+            owners = [-1] * len(shapes)
+            index = {}
+            for i, (name, (x, y, yaw)) in enumerate(poses.items()):
+                shapes.append(robot_shape(self.physics.robots[name].model, x, y, yaw))
+                owners.append(i)
+                index[name] = i
+            scene = lidar.Scene.build(shapes, owners)
+            stamp = _stamp(now)
+            # One batched cast per beam layout (usually one for the whole fleet).
+            groups: dict[tuple, list[_Robot]] = {}
+            for robot in due:
+                lid = robot.spec.lidar
+                groups.setdefault((lid.beams, lid.angle_min, lid.angle_max, lid.range_min, lid.range_max), []).append(robot)
+            for group in groups.values():
+                lid = group[0].spec.lidar
+                group_poses = np.array([poses[r.spec.name] for r in group])
+                owners_idx = np.array([index[r.spec.name] for r in group])
+                all_ranges = lidar.cast_many(scene, group_poses, owners_idx, group[0].angles, lid.range_min, lid.range_max)
+                for robot, pose, ranges in zip(group, group_poses, all_ranges):
+                    robot.next_scan = max(robot.next_scan + 1.0 / robot.spec.lidar.rate, now)
+                    if robot.channel is not None:
+                        robot.channel.publish_scan(stamp, ranges)
+                    robot.hits = (pose[0], pose[1], pose[2], robot.angles, ranges)  # points only for the status
+        for event in self.physics.poll_contacts():
+            self.contacts_count += 1
+            self.contacts_last.append(event.as_dict())
+            log.info("contact %s: %s - %s at t=%.2f", event.kind, event.a, event.b, event.sim_time)
+        for name, (x, y, _) in poses.items():
+            self.robots[name].trail.sample(now, x, y)
+
+    def status(self) -> dict[str, Any]:
+        robots = {}
+        for name, robot in self.robots.items():
+            x, y, yaw = self.physics.robots[name].pose()
+            hits = []
+            if robot.hits:
+                hx, hy, hyaw, angles, ranges = robot.hits
+                every = max(1, math.ceil(len(ranges) / SCAN_HITS_MAX))
+                hits = lidar.hit_points(hx, hy, hyaw, angles, ranges, every)
+            robots[name] = {
+                "pose": {"x": round(x, 4), "y": round(y, 4), "yaw": round(yaw, 4)},
+                "velocity": {"linear": round(robot.velocity[0], 4), "angular": round(robot.velocity[1], 4)},
+                "battery": robot.channel.battery if robot.channel is not None else None,
+                "model": model_dict(robot.spec.model),
+                "namespace": robot.spec.namespace,
+                "trail": [list(p) for p in robot.trail.points],
+                "scan_hits": [list(p) for p in hits],
+            }
+        return {
+            "fleet": self.spec.fleet,
+            "sim_time": round(self.physics.sim_time, 4),
+            "wall_time": round(time.time(), 3),
+            "real_time_factor": round(self.real_time_factor, 3),
+            "physics_rate": self.spec.physics_rate,
+            "robots": robots,
+            "obstacles": [obstacle_dict(spec) for _, spec in self.physics.obstacles.values()],
+            "contacts": {"count": self.contacts_count, "last": list(self.contacts_last)},
+            "errors": list(self.errors.values()),
+        }
+
+    def write_status(self) -> None:
+        if self.status_file is not None:
+            write_atomic(self.status_file, self.status())
+
+    def _measure_rtf(self, wall: float) -> None:
+        window = self._rtf_window
+        window.append((wall, self.physics.sim_time))
+        while len(window) > 2 and wall - window[0][0] > 2.0:
+            window.popleft()
+        (w0, s0), (w1, s1) = window[0], window[-1]
+        if w1 > w0:
+            self.real_time_factor = (s1 - s0) / (w1 - w0)
+
+    def run(self, sim_duration: float | None = None) -> None:
+        """Step until stopped (signal, or sim_duration of sim time has passed)."""
+        start_sim = self.physics.sim_time
+        dt = self.physics.dt
+        wall_ref, sim_ref = time.monotonic(), self.physics.sim_time
+        next_status = next_reload = wall_ref
+        self._measure_rtf(wall_ref)
+        while not self.stopping:
+            if sim_duration is not None and self.physics.sim_time - start_sim >= sim_duration - dt / 2:
+                break
+            if self.bridge is not None and not self.bridge.context.ok():
+                break
+            self.step()
+            wall = time.monotonic()
+            if self.spec.real_time and not self.as_fast_as_possible:
+                ahead = (self.physics.sim_time - sim_ref) - (wall - wall_ref)
+                if ahead > 0.001:
+                    time.sleep(ahead)
+                    wall = time.monotonic()
+                elif ahead < -MAX_LAG:  # too slow for real time: run flat out, do not burst later
+                    wall_ref, sim_ref = wall, self.physics.sim_time
+            if wall >= next_status:
+                next_status = wall + STATUS_PERIOD
+                self._measure_rtf(wall)
+                self.write_status()
+            if wall >= next_reload:
+                next_reload = wall + RELOAD_PERIOD
+                self.check_reload()
+        self._measure_rtf(time.monotonic())
+        self.write_status()
+
+    def close(self) -> None:
+        if self.bridge is not None:
+            self.bridge.close()
+            self.bridge = None
+        self.physics.close()
+
+
+def _stamp(sim_time: float):
+    from fleet.world.ros_bridge import stamp
+
+    return stamp(sim_time)
+
+
+def run_world(config: str | Path, status_file: str | Path | None = None, *, as_fast_as_possible: bool = False,
+              ros_args: list[str] | None = None, sim_duration: float | None = None) -> None:
+    """`fleet world` and `fleet_nodes/world`: validate, start ROS, run until SIGINT/SIGTERM.
+
+    An invalid world.yaml raises WorldError before anything starts (the caller prints one line
+    and exits 2)."""
+    if not logging.getLogger().handlers:
+        logging.basicConfig(level=logging.INFO, format="[world] %(levelname)s: %(message)s")
+    from fleet.world.ros_bridge import RosBridge
+
+    bridge = RosBridge(ros_args)
+    app = None
+    try:
+        app = WorldApp(config, status_file, as_fast_as_possible=as_fast_as_possible, bridge=bridge)
+
+        def _stop(signum, frame):
+            app.stopping = True
+
+        signal.signal(signal.SIGINT, _stop)
+        signal.signal(signal.SIGTERM, _stop)
+        log.info("world '%s' running: %d robots, %d obstacles, %s", app.spec.fleet, len(app.robots),
+                 len(app.physics.obstacles), "as fast as possible" if as_fast_as_possible or not app.spec.real_time else "real time")
+        app.run(sim_duration)
+    finally:
+        if app is not None:
+            app.close()
+        else:
+            bridge.close()

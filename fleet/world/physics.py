@@ -1,0 +1,379 @@
+"""The pybullet world: obstacles, robots (light or husky), stepping, poses and contacts.
+
+No ROS here, so physics can be tested and benchmarked alone.  One DIRECT client per PhysicsWorld.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from dataclasses import dataclass
+
+import pybullet as pb
+import pybullet_data
+
+from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D
+from fleet.world.geometry import Shape, obstacle_shape, overlaps, robot_shape
+
+GRAVITY = -9.81
+LIGHT_HEIGHT = 0.3  # collision height of the light body; obstacles lower than its bottom are not hit
+LIGHT_Z = LIGHT_HEIGHT / 2 + 0.02  # floats 2 cm above the ground: it never touches the plane
+HUSKY_Z = 0.16  # base_link height with the wheels (radius 0.178, axle 0.033 above base) on the ground
+SPAWN_MARGIN = 0.02  # m of clearance required around a new robot
+
+
+@contextlib.contextmanager
+def _quiet_c_output():
+    """pybullet's URDF importer prints a warning per inertia-less link straight to fd 1/2, which
+    would bury our log lines; silence those file descriptors while it runs."""
+    saved = [os.dup(1), os.dup(2)]
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in saved + [devnull]:
+            os.close(fd)
+
+
+def _load_urdf(client: int, path: str, pose: "Pose2D", z: float) -> int:
+    with _quiet_c_output():
+        return pb.loadURDF(path, basePosition=(pose.x, pose.y, z), baseOrientation=flat_quaternion(pose.yaw),
+                           physicsClientId=client)
+
+
+class SpawnError(Exception):
+    """A robot cannot be placed where it was asked to be."""
+
+
+def yaw_of(quaternion) -> float:
+    x, y, z, w = quaternion
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def flat_quaternion(yaw: float) -> tuple[float, float, float, float]:
+    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+
+@dataclass
+class RobotState:
+    x: float
+    y: float
+    yaw: float
+    linear: float  # m/s along the body x axis
+    lateral: float  # m/s along the body y axis (non-zero only when pushed)
+    angular: float  # rad/s about z
+
+
+class _Robot:
+    """Common part: a body id, its model limits and the command to apply."""
+
+    def __init__(self, client: int, name: str, model: ModelSpec, body: int) -> None:
+        self.client = client
+        self.name = name
+        self.model = model
+        self.body = body
+        self.linear = 0.0
+        self.angular = 0.0
+
+    def command(self, linear: float, angular: float) -> None:
+        lim_v, lim_w = self.model.max_linear_speed, self.model.max_angular_speed
+        self.linear = min(max(linear, -lim_v), lim_v)
+        self.angular = min(max(angular, -lim_w), lim_w)
+
+    def before_step(self, dt: float, gravity: float = 0.0) -> None:
+        raise NotImplementedError
+
+    def state(self) -> RobotState:
+        pos, orn = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        (vx, vy, _), (_, _, wz) = pb.getBaseVelocity(self.body, physicsClientId=self.client)
+        yaw = yaw_of(orn)
+        c, s = math.cos(yaw), math.sin(yaw)
+        return RobotState(pos[0], pos[1], yaw, c * vx + s * vy, -s * vx + c * vy, wz)
+
+    def pose(self) -> tuple[float, float, float]:
+        pos, orn = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        return pos[0], pos[1], yaw_of(orn)
+
+
+class LightRobot(_Robot):
+    """One rigid cylinder driven by setting its base velocity.
+
+    It never touches the ground (collisions with the plane are filtered out).  Without URDF robots
+    the world has no gravity, the body keeps its velocity between updates (no damping) and the
+    velocity is refreshed at ~60 Hz (heading and command); with URDF robots gravity is on and the
+    velocity is set every tick with an upward g*dt that cancels what gravity adds during the step.
+    Contacts with robots and obstacles still go through the solver, which is what keeps bodies
+    from passing through each other.  Any tilt or height drift a contact causes is undone by
+    resetting the pose flat (rare, so cheap).
+    """
+
+    def __init__(self, client: int, name: str, model: ModelSpec, pose: Pose2D, plane: int) -> None:
+        shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=model.radius, height=LIGHT_HEIGHT,
+                                        physicsClientId=client)
+        body = pb.createMultiBody(baseMass=10.0, baseCollisionShapeIndex=shape,
+                                  basePosition=(pose.x, pose.y, LIGHT_Z),
+                                  baseOrientation=flat_quaternion(pose.yaw), physicsClientId=client)
+        # Frictionless so a robot slides along walls instead of snagging; large roll/pitch inertia so
+        # contacts barely tilt it; no damping (velocity is set every tick anyway); never sleeps.
+        pb.changeDynamics(body, -1, lateralFriction=0.0, spinningFriction=0.0, rollingFriction=0.0,
+                          restitution=0.0, linearDamping=0.0, angularDamping=0.0,
+                          localInertiaDiagonal=(1e3, 1e3, 0.5 * 10.0 * model.radius ** 2),
+                          activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
+        pb.setCollisionFilterPair(body, plane, -1, -1, 0, physicsClientId=client)
+        super().__init__(client, name, model, body)
+
+    def before_step(self, dt: float, gravity: float = 0.0) -> None:
+        client, body = self.client, self.body
+        pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
+        yaw = yaw_of(orn)
+        if abs(orn[0]) + abs(orn[1]) > 1e-4 or abs(pos[2] - LIGHT_Z) > 1e-3:
+            pb.resetBasePositionAndOrientation(body, (pos[0], pos[1], LIGHT_Z), flat_quaternion(yaw),
+                                               physicsClientId=client)
+        v = self.linear
+        pb.resetBaseVelocity(body, (v * math.cos(yaw), v * math.sin(yaw), -gravity * dt),
+                             (0.0, 0.0, self.angular), physicsClientId=client)
+
+
+class HuskyRobot(_Robot):
+    """pybullet_data's husky URDF, skid-steered through velocity motors on its four wheels."""
+
+    MAX_WHEEL_FORCE = 60.0  # N*m per wheel
+    WHEEL_RADIUS = 0.17775  # from husky.urdf
+    # Skid steering slips: with the URDF's wheel friction the body turns at ~0.42 of the rate the
+    # plain diff-drive formula predicts (measured), so the wheel speed difference is scaled up.
+    SKID_FACTOR = 2.35
+
+    def __init__(self, client: int, name: str, model: ModelSpec, pose: Pose2D) -> None:
+        body = _load_urdf(client, "husky/husky.urdf", pose, HUSKY_Z)
+        super().__init__(client, name, model, body)
+        self.left: list[int] = []
+        self.right: list[int] = []
+        wheel_y: list[float] = []
+        for joint in range(pb.getNumJoints(body, physicsClientId=client)):
+            info = pb.getJointInfo(body, joint, physicsClientId=client)
+            joint_name = info[1].decode()
+            if info[2] != pb.JOINT_REVOLUTE or "wheel" not in joint_name:
+                continue
+            (self.left if "left" in joint_name else self.right).append(joint)
+            wheel_y.append(abs(info[14][1]))  # parentFramePos y: half the track
+        if not self.left or not self.right:
+            pb.removeBody(body, physicsClientId=client)
+            raise SpawnError(f"robot '{name}': husky URDF has no left/right wheel joints")
+        self.track = 2.0 * sum(wheel_y) / len(wheel_y)
+        self._applied: tuple[float, float] | None = None
+
+    def before_step(self, dt: float, gravity: float = 0.0) -> None:
+        # Velocity motors keep their target: only talk to pybullet when the command changes.
+        if self._applied == (self.linear, self.angular):
+            return
+        self._applied = (self.linear, self.angular)
+        spread = self.angular * self.track / 2 * self.SKID_FACTOR
+        left = (self.linear - spread) / self.WHEEL_RADIUS
+        right = (self.linear + spread) / self.WHEEL_RADIUS
+        joints = self.left + self.right
+        targets = [left] * len(self.left) + [right] * len(self.right)
+        pb.setJointMotorControlArray(self.body, joints, pb.VELOCITY_CONTROL, targetVelocities=targets,
+                                     forces=[self.MAX_WHEEL_FORCE] * len(joints), physicsClientId=self.client)
+
+
+class RacecarRobot(_Robot):
+    """pybullet_data's racecar URDF: rear-wheel drive, Ackermann steering (it cannot turn on the
+    spot: the twist's angular rate is turned into a steering angle for the current speed)."""
+
+    WHEEL_RADIUS = 0.05
+    WHEELBASE = 0.325
+    MAX_STEER = 0.6  # rad
+    MAX_FORCE = 10.0
+
+    def __init__(self, client: int, name: str, model: ModelSpec, pose: Pose2D) -> None:
+        body = _load_urdf(client, "racecar/racecar.urdf", pose, 0.0)
+        super().__init__(client, name, model, body)
+        joints = {pb.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
+                  for j in range(pb.getNumJoints(body, physicsClientId=client))}
+        self.drive = [j for n, j in joints.items() if n.endswith("wheel_joint")]
+        self.steer = [j for n, j in joints.items() if "steering_hinge" in n]
+        if not self.drive or not self.steer:
+            pb.removeBody(body, physicsClientId=client)
+            raise SpawnError(f"robot '{name}': racecar URDF has no wheel or steering joints")
+        self._applied: tuple[float, float] | None = None
+
+    def before_step(self, dt: float, gravity: float = 0.0) -> None:
+        if self._applied == (self.linear, self.angular):
+            return
+        self._applied = (self.linear, self.angular)
+        v, w = self.linear, self.angular
+        steer = 0.0 if abs(v) < 1e-3 else math.atan(w * self.WHEELBASE / v)
+        steer = min(max(steer, -self.MAX_STEER), self.MAX_STEER)
+        c = self.client
+        pb.setJointMotorControlArray(self.body, self.drive, pb.VELOCITY_CONTROL,
+                                     targetVelocities=[v / self.WHEEL_RADIUS] * len(self.drive),
+                                     forces=[self.MAX_FORCE] * len(self.drive), physicsClientId=c)
+        pb.setJointMotorControlArray(self.body, self.steer, pb.POSITION_CONTROL,
+                                     targetPositions=[steer] * len(self.steer), physicsClientId=c)
+
+
+@dataclass
+class ContactEvent:
+    sim_time: float
+    a: str
+    b: str
+    kind: str  # "robot-robot" | "robot-obstacle"
+
+    def as_dict(self) -> dict:
+        return {"sim_time": round(self.sim_time, 3), "a": self.a, "b": self.b, "kind": self.kind}
+
+
+class PhysicsWorld:
+    def __init__(self, physics_rate: float = 240.0, solver_iterations: int = 10) -> None:
+        self.client = pb.connect(pb.DIRECT)
+        self.dt = 1.0 / physics_rate
+        pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=self.client)
+        pb.setTimeStep(self.dt, physicsClientId=self.client)
+        self.gravity = 0.0  # switched on while URDF robots (which need it for traction) are present
+        self._light_every = max(1, round(physics_rate / 60.0))  # light velocity refresh, in ticks
+        self._ticks = 0
+        # 10 iterations instead of 50: planar contacts converge fast and the solver dominates the
+        # step cost with many bodies.
+        pb.setPhysicsEngineParameter(numSolverIterations=solver_iterations, physicsClientId=self.client)
+        plane_shape = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=self.client)
+        self.plane = pb.createMultiBody(0, plane_shape, physicsClientId=self.client)
+        self.robots: dict[str, _Robot] = {}
+        self.obstacles: dict[str, tuple[int, ObstacleSpec]] = {}
+        self._names: dict[int, tuple[str, str]] = {}  # body id -> (name, "robot"|"obstacle")
+        self.sim_time = 0.0
+        self._touching: dict[tuple[str, str], float] = {}  # pair -> sim time last seen in contact
+        self._light: list[LightRobot] = []
+        self._urdf: list[_Robot] = []
+
+    # -- content ---------------------------------------------------------------------------------
+
+    def add_obstacle(self, spec: ObstacleSpec) -> None:
+        c = self.client
+        if spec.type == "cylinder":
+            shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=spec.radius, height=spec.height, physicsClientId=c)
+        else:
+            half = (spec.size[0] / 2, spec.size[1] / 2, spec.height / 2)
+            shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=c)
+        body = pb.createMultiBody(0, shape, basePosition=(spec.x, spec.y, spec.height / 2),
+                                  baseOrientation=flat_quaternion(spec.yaw), physicsClientId=c)
+        pb.changeDynamics(body, -1, lateralFriction=0.0, restitution=0.0, physicsClientId=c)
+        self.obstacles[spec.name] = (body, spec)
+        self._names[body] = (spec.name, "obstacle")
+
+    def remove_obstacle(self, name: str) -> None:
+        body, _ = self.obstacles.pop(name)
+        self._names.pop(body, None)
+        pb.removeBody(body, physicsClientId=self.client)
+
+    def placement_problem(self, name: str, model: ModelSpec, pose: Pose2D) -> str | None:
+        """Why a robot cannot be placed at pose (overlaps), or None when the spot is free."""
+        shape = robot_shape(model, pose.x, pose.y, pose.yaw)
+        for obstacle_name, (_, spec) in self.obstacles.items():
+            if overlaps(shape, obstacle_shape(spec), SPAWN_MARGIN):
+                return f"spawn pose ({pose.x:g}, {pose.y:g}) of robot '{name}' overlaps obstacle '{obstacle_name}'"
+        for other_name, robot in self.robots.items():
+            if other_name == name:
+                continue
+            x, y, yaw = robot.pose()
+            if overlaps(shape, robot_shape(robot.model, x, y, yaw), SPAWN_MARGIN):
+                return (f"spawn pose ({pose.x:g}, {pose.y:g}) of robot '{name}' overlaps robot "
+                        f"'{other_name}' at ({x:.2f}, {y:.2f})")
+        return None
+
+    def add_robot(self, name: str, model: ModelSpec, pose: Pose2D) -> None:
+        if name in self.robots:
+            raise SpawnError(f"robot '{name}' already exists")
+        problem = self.placement_problem(name, model, pose)
+        if problem:
+            raise SpawnError(problem)
+        if model.type == "husky":
+            robot: _Robot = HuskyRobot(self.client, name, model, pose)
+        elif model.type == "racecar":
+            robot = RacecarRobot(self.client, name, model, pose)
+        else:
+            robot = LightRobot(self.client, name, model, pose, self.plane)
+        self.robots[name] = robot
+        self._names[robot.body] = (name, "robot")
+        self._sort_robots()
+
+    def remove_robot(self, name: str) -> None:
+        robot = self.robots.pop(name)
+        self._names.pop(robot.body, None)
+        pb.removeBody(robot.body, physicsClientId=self.client)
+        self._sort_robots()
+        self._touching = {pair: t for pair, t in self._touching.items() if name not in pair}
+
+    def _sort_robots(self) -> None:
+        self._light = [r for r in self.robots.values() if isinstance(r, LightRobot)]
+        self._urdf = [r for r in self.robots.values() if not isinstance(r, LightRobot)]
+        gravity = GRAVITY if self._urdf else 0.0
+        if gravity != self.gravity:
+            self.gravity = gravity
+            pb.setGravity(0, 0, gravity, physicsClientId=self.client)
+
+    def shapes(self) -> tuple[list[Shape], list[str | None]]:
+        """Every footprint now, with the robot name owning it (None for obstacles)."""
+        shapes: list[Shape] = [obstacle_shape(spec) for _, spec in self.obstacles.values()]
+        owners: list[str | None] = [None] * len(shapes)
+        for name, robot in self.robots.items():
+            x, y, yaw = robot.pose()
+            shapes.append(robot_shape(robot.model, x, y, yaw))
+            owners.append(name)
+        return shapes, owners
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def command(self, name: str, linear: float, angular: float) -> None:
+        self.robots[name].command(linear, angular)
+
+    def step(self) -> None:
+        dt, gravity = self.dt, self.gravity
+        self._ticks += 1
+        if gravity or self._ticks % self._light_every == 0:
+            for robot in self._light:
+                robot.before_step(dt, gravity)
+        for robot in self._urdf:
+            robot.before_step(dt, gravity)
+        pb.stepSimulation(physicsClientId=self.client)
+        self.sim_time += dt
+
+    def state(self, name: str) -> RobotState:
+        return self.robots[name].state()
+
+    def poll_contacts(self, debounce: float = 0.1) -> list[ContactEvent]:
+        """New robot-robot and robot-obstacle contacts since the last call.
+
+        A pair counts once when it starts touching; it has to be apart for `debounce` seconds of
+        sim time before touching again counts as a new contact (bodies pressed together flicker
+        in and out of contact from one step to the next).
+        """
+        now = self.sim_time
+        names = self._names
+        seen: set[tuple[str, str]] = set()
+        kinds: dict[tuple[str, str], str] = {}
+        for point in pb.getContactPoints(physicsClientId=self.client):
+            a, b = names.get(point[1]), names.get(point[2])
+            if a is None or b is None or (a[1] != "robot" and b[1] != "robot"):
+                continue  # the ground, or a body removed meanwhile
+            pair = (a[0], b[0]) if a[0] < b[0] else (b[0], a[0])
+            seen.add(pair)
+            kinds[pair] = "robot-robot" if a[1] == b[1] else "robot-obstacle"
+        events = []
+        for pair in seen:
+            last = self._touching.get(pair)
+            if last is None or now - last > debounce:
+                events.append(ContactEvent(now, pair[0], pair[1], kinds[pair]))
+            self._touching[pair] = now
+        self._touching = {pair: t for pair, t in self._touching.items() if now - t <= debounce}
+        events.sort(key=lambda e: (e.a, e.b))
+        return events
+
+    def close(self) -> None:
+        if self.client is not None and pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self.client = None

@@ -1,0 +1,100 @@
+"""The world's status file: building the JSON document, writing it atomically, reading it back.
+
+The document (also what a Zenoh status query will return later) is plain JSON data:
+
+    {"fleet", "sim_time", "wall_time", "real_time_factor", "physics_rate",
+     "robots": {name: {"pose": {"x", "y", "yaw"}, "velocity": {"linear", "angular"},
+                       "battery": fraction 0..1 or null, "model": {"type", "radius" | "length", "width"},
+                       "trail": [[x, y], ...], "scan_hits": [[x, y], ...]}},
+     "obstacles": [{"name", "type": "box"|"cylinder", "position": [x, y], "yaw", "size": [lx, ly, h] | "radius"}],
+     "contacts": {"count", "last": [{"sim_time", "a", "b", "kind"}]},
+     "errors": [{"sim_time", "message"}]}
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D
+
+TRAIL_LENGTH = 60  # poses kept per robot
+TRAIL_PERIOD = 0.5  # s of sim time between trail points
+SCAN_HITS_MAX = 90  # lidar hit points kept per robot (decimated)
+CONTACTS_KEPT = 20
+
+
+def model_dict(model: ModelSpec) -> dict[str, Any]:
+    if model.is_round:
+        return {"type": model.type, "radius": model.radius}
+    return {"type": model.type, "length": model.length, "width": model.width}
+
+
+def obstacle_dict(spec: ObstacleSpec) -> dict[str, Any]:
+    entry: dict[str, Any] = {"name": spec.name, "type": spec.type, "position": [spec.x, spec.y], "yaw": spec.yaw}
+    if spec.type == "cylinder":
+        entry.update(radius=spec.radius, height=spec.height)
+    else:
+        entry["size"] = list(spec.size)
+    return entry
+
+
+class Trail:
+    """A short history of positions, sampled every TRAIL_PERIOD of sim time."""
+
+    def __init__(self) -> None:
+        self.points: deque[tuple[float, float]] = deque(maxlen=TRAIL_LENGTH)
+        self.next_time = 0.0
+
+    def sample(self, sim_time: float, x: float, y: float) -> None:
+        if sim_time >= self.next_time:
+            self.points.append((round(x, 3), round(y, 3)))
+            self.next_time = sim_time + TRAIL_PERIOD
+
+
+def write_atomic(path: str | Path, data: dict[str, Any]) -> None:
+    """Readers see the old file or the new one, never half of one (tmp in the same dir + rename)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        # json.dumps uses the C encoder; json.dump(data, file) streams through the pure-Python one
+        # (measured 10x slower on a 100-robot status).
+        text = json.dumps(data, separators=(",", ":"), allow_nan=False)
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def read_status(path: str | Path) -> dict[str, Any] | None:
+    """The status document, or None when missing or unreadable (a crash cannot leave a half file,
+    but a user may have edited it)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def last_poses(status: dict[str, Any] | None) -> dict[str, Pose2D]:
+    """Robot poses reported in a status document (bad entries skipped)."""
+    poses: dict[str, Pose2D] = {}
+    robots = (status or {}).get("robots")
+    if not isinstance(robots, dict):
+        return poses
+    for name, entry in robots.items():
+        try:
+            pose = entry["pose"]
+            poses[name] = Pose2D(float(pose["x"]), float(pose["y"]), float(pose["yaw"]))
+        except (KeyError, TypeError, ValueError):
+            continue
+    return poses

@@ -1,0 +1,128 @@
+"""The world loop without ROS: live reload, spawn refusal in the status, restart from the status
+file, and a snapshot drawn from status data."""
+
+import json
+import os
+import time
+
+import pytest
+
+from fleet.world.app import WorldApp
+from fleet.world.description import WorldError
+from fleet.world.snapshot import draw_snapshot
+
+BASE = """\
+fleet: test
+obstacles:
+- {name: wall, type: box, position: [3.0, 0.0], size: [0.2, 4.0, 1.0]}
+- {name: pillar, type: cylinder, position: [0.0, 2.0], radius: 0.3}
+robots:
+- {name: robot1, pose: {x: 0.0, y: 0.0}}
+- {name: robot2, pose: {x: 1.0, y: 0.0, yaw: 1.57}}
+"""
+
+
+def write(path, text):
+    path.write_text(text)
+    # make sure the mtime/size stamp differs even on coarse filesystem clocks
+    stamp = time.time() + 1 + len(text) * 1e-3
+    os.utime(path, (stamp, stamp))
+
+
+@pytest.fixture
+def files(tmp_path):
+    config = tmp_path / "world.yaml"
+    write(config, BASE)
+    return config, tmp_path / "status.json"
+
+
+def test_reload_adds_refuses_and_removes_robots(files):
+    config, status_file = files
+    app = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        app.run(sim_duration=0.2)
+        assert set(app.robots) == {"robot1", "robot2"}
+        before = app.physics.robots["robot1"].pose()
+        write(config, BASE + "- {name: robot3, pose: {x: -2.0, y: 0.0}}\n"
+                             "- {name: robot4, pose: {x: 0.1, y: 2.0}}\n")  # robot4 sits in the pillar
+        app.check_reload()
+        assert set(app.robots) == {"robot1", "robot2", "robot3"}
+        assert app.physics.robots["robot1"].pose() == before  # the others were not disturbed
+        app.write_status()
+        status = json.loads(status_file.read_text())
+        assert len(status["errors"]) == 1 and "robot4" in status["errors"][0]["message"]
+        assert "overlaps obstacle 'pillar'" in status["errors"][0]["message"]
+        assert set(status["robots"]) == {"robot1", "robot2", "robot3"}
+
+        write(config, "robots: [\n")  # broken: reported, the world keeps what it has
+        app.check_reload()
+        assert set(app.robots) == {"robot1", "robot2", "robot3"}
+        assert any("not applied" in e["message"] for e in app.status()["errors"])
+
+        write(config, BASE)  # robot3 and robot4 leave, the error goes away
+        app.check_reload()
+        assert set(app.robots) == {"robot1", "robot2"} and app.status()["errors"] == []
+    finally:
+        app.close()
+
+
+def test_restart_puts_robots_back_where_they_were(files):
+    config, status_file = files
+    app = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        app.physics.command("robot1", 0.5, 0.0)
+        app.run(sim_duration=2.0)  # writes a final status
+    finally:
+        app.close()
+    status = json.loads(status_file.read_text())
+    x = status["robots"]["robot1"]["pose"]["x"]
+    assert x > 0.5  # it moved (pushing robot2 once it reached it)
+    assert len(status["robots"]["robot1"]["trail"]) >= 3
+    assert status["robots"]["robot1"]["scan_hits"]  # the wall and robot2 are in reach
+    assert set(status) >= {"sim_time", "real_time_factor", "robots", "contacts", "errors", "obstacles"}
+
+    again = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        rx, ry, _ = again.physics.robots["robot1"].pose()
+        assert abs(rx - x) < 1e-3 and abs(ry - status["robots"]["robot1"]["pose"]["y"]) < 1e-3
+    finally:
+        again.close()
+
+
+def test_invalid_world_at_start_raises(tmp_path):
+    config = tmp_path / "world.yaml"
+    config.write_text("robots:\n- {name: r1, pose: {x: nope}}\n")
+    with pytest.raises(WorldError, match=r"world.yaml:2:\d+: .*'x' must be a number"):
+        WorldApp(config)
+
+
+def test_snapshot_draws_status_data(files, tmp_path):
+    config, status_file = files
+    app = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        app.physics.command("robot1", 0.6, 0.4)
+        app.run(sim_duration=3.0)
+        status = app.status()
+    finally:
+        app.close()
+    png = draw_snapshot(status, tmp_path / "world.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_command_times_out_in_both_sim_and_wall_time(monkeypatch):
+    """A command is dropped only when it is older than cmd_timeout in sim time AND in wall time."""
+    import types
+
+    from fleet.world import ros_bridge
+    from fleet.world.description import RobotSpec
+
+    wall = [100.0]
+    monkeypatch.setattr(ros_bridge.time, "monotonic", lambda: wall[0])
+    channel = types.SimpleNamespace(spec=RobotSpec("r", "/r", cmd_timeout=0.5),
+                                    command=ros_bridge.Command(0.4, 0.1, wall=100.0, sim=10.0))
+    current = ros_bridge.RobotChannel.current_command
+    assert current(channel, 10.2) == (0.4, 0.1)
+    assert current(channel, 30.0) == (0.4, 0.1)  # far ahead in sim, but only just sent (fast world)
+    wall[0] = 100.6
+    assert current(channel, 10.3) == (0.4, 0.1)  # old in wall time, fresh in sim (slow world)
+    assert current(channel, 10.6) == (0.0, 0.0)

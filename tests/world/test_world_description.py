@@ -1,0 +1,69 @@
+"""world.yaml validation: defaults, the documented schema, and one located error per problem."""
+
+import math
+
+import pytest
+
+from fleet.world.description import WorldError, parse_world
+
+DOCUMENTED = """
+fleet: two_robots
+physics_rate: 240.0
+real_time: true
+clock_rate: 100.0
+obstacles:
+- {name: wall_north, type: box, position: [0.0, 5.0], yaw: 0.0, size: [10.0, 0.2, 1.0]}
+- {name: pillar, type: cylinder, position: [2.0, 2.0], radius: 0.3, height: 1.0}
+robots:
+- name: robot1
+  namespace: /robot1
+  model: {type: light, radius: 0.2, max_linear_speed: 1.0, max_angular_speed: 2.5}
+  pose: {x: 0.0, y: 0.0, yaw: 0.0}
+  lidar: {beams: 360, rate: 10.0, range_min: 0.12, range_max: 8.0}
+  odom_rate: 50.0
+  cmd_timeout: 0.5
+  ground_truth: false
+- name: robot2
+  model: {type: husky}
+  pose: {x: 3, y: 0}
+"""
+
+
+def test_documented_example_parses_with_defaults():
+    world = parse_world(DOCUMENTED)
+    assert world.fleet == "two_robots" and world.physics_rate == 240.0
+    wall, pillar = world.obstacles
+    assert wall.type == "box" and wall.size == (10.0, 0.2, 1.0) and wall.height == 1.0
+    assert pillar.type == "cylinder" and pillar.radius == 0.3
+    robot1, robot2 = world.robots
+    assert robot1.namespace == "/robot1" and robot1.lidar.beams == 360
+    assert math.isclose(robot1.lidar.increment, 2 * math.pi / 360)
+    assert robot2.namespace == "/robot2" and robot2.model.type == "husky"
+    assert (robot2.model.length, robot2.model.width) == (0.99, 0.68)
+    assert robot2.pose.x == 3.0 and robot2.odom_rate == 50.0 and robot2.cmd_timeout == 0.5
+
+
+def test_wall_is_a_box_and_empty_world_is_fine():
+    world = parse_world("obstacles:\n- {name: w, type: wall, position: [1, 2], size: [3, 0.1, 1]}\n")
+    assert world.obstacles[0].type == "box" and world.robots == ()
+
+
+@pytest.mark.parametrize("text, where, words", [
+    ("robots:\n- name: r1\n  pose: {x: 1, y: oops}\n", ":3:", "'y' must be a number"),
+    ("robots:\n- name: r1\n- name: r1\n", ":3:", "duplicate robot name 'r1'"),
+    ("robots:\n- name: 9lives\n", ":2:", "not a valid name"),
+    ("robots:\n- name: r1\n  model: {type: tank}\n", ":3:", "unknown model type 'tank'"),
+    ("robots:\n- name: r1\n  lidar: {range_min: 5, range_max: 1}\n", ":3:", "range_min must be below range_max"),
+    ("robots:\n- name: r1\n  odom_rate: 0\n", ":3:", "'odom_rate' must be > 0"),
+    ("robots:\n- name: r1\n  colour: red\n", ":3:", "unknown key 'colour'"),
+    ("obstacles:\n- {name: c, type: cylinder, position: [0, 0]}\n", ":2:", "missing 'radius'"),
+    ("obstacles:\n- {name: b, type: box, position: [0], size: [1, 1, 1]}\n", ":2:", "'position' must be a list of 2"),
+    ("robots: [\n", ":", "invalid YAML"),
+    ("physics_rate: -1\n", ":1:", "'physics_rate' must be > 0"),
+])
+def test_errors_name_file_line_and_problem(text, where, words):
+    with pytest.raises(WorldError) as caught:
+        parse_world(text, "w.yaml")
+    message = str(caught.value)
+    assert message.startswith("w.yaml") and where in message and words in message, message
+    assert "\n" not in message

@@ -1,0 +1,168 @@
+"""The world as a real process with real rclpy in an isolated domain: cmd_vel -> odom, /clock,
+contacts in the status file, robots joining and leaving through world.yaml."""
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+WORLD = """\
+fleet: it
+obstacles:
+- {{name: wall, type: box, position: [6.0, 0.0], size: [0.2, 4.0, 1.0]}}
+robots:
+- {{name: robot1, pose: {{x: 0.0, y: 0.0}}, cmd_timeout: 0.5}}
+- {{name: robot2, pose: {{x: 2.0, y: 0.0}}}}
+{extra}"""
+
+
+def wait_for(predicate, timeout, what):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+def read_status(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+class Listener:
+    """A test-side rclpy node: latest odom per robot, clock count, a cmd_vel publisher."""
+
+    def __init__(self):
+        import rclpy
+        from geometry_msgs.msg import Twist
+        from nav_msgs.msg import Odometry
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+
+        self.rclpy = rclpy
+        self.Twist = Twist
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("world_test", context=self.context)
+        self.odom: dict[str, object] = {}
+        self.clock_count = 0
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        for name in ("robot1", "robot2", "robot3"):
+            self.node.create_subscription(Odometry, f"/{name}/odom", lambda m, n=name: self.odom.__setitem__(n, m), qos)
+        self.node.create_subscription(Clock, "/clock", self._on_clock, qos)
+        self.cmd = self.node.create_publisher(Twist, "/robot1/cmd_vel", 10)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _on_clock(self, msg):
+        self.clock_count += 1
+
+    def drive(self, linear):
+        msg = self.Twist()
+        msg.linear.x = linear
+        self.cmd.publish(msg)
+
+    def close(self):
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        self.rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def world(tmp_path, ros_env):
+    config = tmp_path / "world.yaml"
+    config.write_text(WORLD.format(extra=""))
+    status = tmp_path / "status.json"
+    log = tmp_path / "world.log"  # a file, not a pipe: a full pipe would block the world
+    with open(log, "w") as out:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "fleet.nodes.world", "--config", str(config), "--status-file", str(status),
+             "--as-fast-as-possible"],
+            env=ros_env, stdout=out, stderr=subprocess.STDOUT)
+    listener = Listener()
+    try:
+        yield config, status, listener, proc
+    finally:
+        listener.close()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        print(log.read_text()[-4000:])
+
+
+def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
+    config, status_file, ros, proc = world
+    wait_for(lambda: "robot1" in ros.odom and "robot2" in ros.odom, 20, "odom from both robots")
+    assert wait_for(lambda: ros.clock_count > 10, 5, "/clock")
+
+    # Drive robot1 backwards, away from everything: its odom moves, robot2's does not.  (Not
+    # forwards: as fast as possible the world can cover the 1.6 m to robot2 before our odom
+    # subscription has caught up.)
+    def robot1_moved():
+        ros.drive(-0.5)
+        return ros.odom["robot1"].pose.pose.position.x < -0.3
+    wait_for(robot1_moved, 10, "robot1's odom to advance")
+    robot2 = ros.odom["robot2"]
+    assert abs(robot2.pose.pose.position.x) < 0.01 and abs(robot2.twist.twist.linear.x) < 1e-3
+    assert ros.odom["robot1"].header.frame_id == "robot1/odom"
+    assert ros.odom["robot1"].child_frame_id == "robot1/base_link"
+
+    # Keep driving into robot2: one contact in the status file, and no passing through.
+    def contact_reported():
+        ros.drive(0.5)
+        status = read_status(status_file)
+        return status if status and status["contacts"]["count"] >= 1 else None
+    status = wait_for(contact_reported, 20, "a contact in the status file")
+    first = status["contacts"]["last"][0]
+    assert (first["a"], first["b"], first["kind"]) == ("robot1", "robot2", "robot-robot")
+    for _ in range(10):  # robot1 keeps pushing (robot2 may slide aside): they never overlap
+        ros.drive(0.5)
+        status = read_status(status_file) or status
+        one, two = status["robots"]["robot1"]["pose"], status["robots"]["robot2"]["pose"]
+        assert math.hypot(one["x"] - two["x"], one["y"] - two["y"]) > 0.37  # radii 0.2 + 0.2
+        time.sleep(0.05)
+
+    # Without commands robot1 stops once its last one is older than cmd_timeout.
+    wait_for(lambda: abs(ros.odom["robot1"].twist.twist.linear.x) < 1e-3, 10, "robot1 to stop after cmd_timeout")
+
+    # A robot joins by rewriting world.yaml, then leaves.
+    config.write_text(WORLD.format(extra="- {name: robot3, pose: {x: 0.0, y: -3.0}}\n"))
+    wait_for(lambda: "robot3" in (read_status(status_file) or {}).get("robots", {}), 10, "robot3 in the status")
+    wait_for(lambda: "robot3" in ros.odom, 10, "odom from robot3")
+    assert proc.poll() is None
+    config.write_text(WORLD.format(extra=""))
+    wait_for(lambda: "robot3" not in (read_status(status_file) or {}).get("robots", {"robot3": 1}), 10,
+             "robot3 to leave the status")
+    wait_for(lambda: ros.node.count_publishers("/robot3/odom") == 0, 10, "robot3's publishers to go away")
+    assert set(read_status(status_file)["robots"]) == {"robot1", "robot2"}
+    assert read_status(status_file)["errors"] == []
+
+
+def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env):
+    config = tmp_path / "world.yaml"
+    config.write_text("robots:\n- {name: robot1, model: {type: tank}}\n")
+    done = subprocess.run([sys.executable, "-m", "fleet.nodes.world", "--config", str(config)],
+                          env=ros_env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and "unknown model type 'tank'" in lines[0]
