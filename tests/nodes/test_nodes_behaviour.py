@@ -70,17 +70,33 @@ def diagnostics_of(ros, node_name: str) -> dict:
     seen = ros.latest(DiagnosticArray, "diagnostics")
     array = ros.spin_until(lambda: seen and seen[-1], timeout=3.0)
     status = next(s for s in array.status if s.name.endswith(node_name))
-    return {"level": status.level, "message": status.message, **{kv.key: kv.value for kv in status.values}}
+    return {
+        "level": status.level,
+        "message": status.message,
+        **{kv.key: kv.value for kv in status.values},
+    }
 
 
 def test_controller_drives_towards_the_waypoint_and_stops_on_dead_battery(ros):
-    node = ros.add(ControllerNode, "-p", "waypoints:=[2.0, 0.0, 2.0, 2.0]", "-p", "max_speed:=0.3",
-            "-p", "max_turn_rate:=0.8", "-p", "control_rate:=50.0")
+    node = ros.add(
+        ControllerNode,
+        "-p",
+        "waypoints:=[2.0, 0.0, 2.0, 2.0]",
+        "-p",
+        "max_speed:=0.3",
+        "-p",
+        "max_turn_rate:=0.8",
+        "-p",
+        "control_rate:=50.0",
+    )
     odom_pub = ros.probe.create_publisher(Odometry, "odom", 10)
     battery_pub = ros.probe.create_publisher(BatteryState, "battery", 10)
     cmds = ros.latest(Twist, "cmd_vel")
-    goals = ros.latest(PointStamped, "controller/goal",
-                       QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))
+    goals = ros.latest(
+        PointStamped,
+        "controller/goal",
+        QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL),
+    )
 
     def command_after(msg):
         """The first command computed after msg arrived (commands are sent at control_rate)."""
@@ -137,18 +153,34 @@ def test_controller_refuses_bad_live_parameters_with_a_reason(ros):
 
 def test_battery_drains_with_sim_time_faster_with_motion_and_dies_below_critical(ros):
     # 1 Wh at 3.6 W idle lasts 1000 s; motion at 0.5 m/s adds another 3.6 W.
-    node = ros.add(BatteryNode, "-p", "use_sim_time:=true", "-p", "capacity:=1.0", "-p", "idle_draw:=3.6",
-                   "-p", "motion_draw:=7.2", "-p", "publish_rate:=10.0",
-                   "-p", "low_threshold:=0.8", "-p", "critical_threshold:=0.6")
+    node = ros.add(
+        BatteryNode,
+        "-p",
+        "use_sim_time:=true",
+        "-p",
+        "capacity:=1.0",
+        "-p",
+        "idle_draw:=3.6",
+        "-p",
+        "motion_draw:=7.2",
+        "-p",
+        "publish_rate:=10.0",
+        "-p",
+        "low_threshold:=0.8",
+        "-p",
+        "critical_threshold:=0.6",
+    )
     clock_pub = ros.probe.create_publisher(Clock, "/clock", 10)
     odom_pub = ros.probe.create_publisher(Odometry, "odom", 10)
     states = ros.latest(BatteryState, "battery")
 
     def at(sim_seconds: int) -> BatteryState:
         """The battery state published at sim time sim_seconds."""
+
         def stamped():
             clock_pub.publish(Clock(clock=Time(sec=sim_seconds)))
             return next((s for s in reversed(states) if s.header.stamp.sec == sim_seconds), None)
+
         return ros.spin_until(stamped)
 
     assert at(1000).percentage == pytest.approx(1.0)
@@ -178,7 +210,9 @@ def test_safety_passes_blocks_forward_ignores_behind_and_zeroes_on_scan_timeout(
 
     def gated(scan_msg: LaserScan, cmd: Twist) -> Twist:
         scan_pub.publish(scan_msg)
-        ros.spin_until(lambda: node.last_scan and node.last_scan.header.stamp == scan_msg.header.stamp)
+        ros.spin_until(
+            lambda: node.last_scan and node.last_scan.header.stamp == scan_msg.header.stamp
+        )
         ros.spin_for(0.02)  # let a re-sent command from the new verdict arrive before clearing
         del outs[:]
         cmd_pub.publish(cmd)
@@ -216,7 +250,9 @@ def test_safety_passes_blocks_forward_ignores_behind_and_zeroes_on_scan_timeout(
 def test_composite_applies_a_groups_log_level_to_its_node_only(ros):
     from fleet.nodes.composite import _create
 
-    quiet = _create("battery", ["--ros-args", "-r", "__ns:=/r1", "--log-level", "error"], context=ros.context)
+    quiet = _create(
+        "battery", ["--ros-args", "-r", "__ns:=/r1", "--log-level", "error"], context=ros.context
+    )
     plain = _create("safety", ["--ros-args", "-r", "__ns:=/r1"], context=ros.context)
     ros.nodes += [quiet, plain]
     assert quiet.get_fully_qualified_name() == "/r1/battery"

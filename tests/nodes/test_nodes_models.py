@@ -61,20 +61,46 @@ def test_follower_advances_loops_and_finishes():
     assert not once.finished and once.index == 0
 
 
+@pytest.mark.parametrize("max_speed, rate", [(0.5, 20.0), (5.0, 20.0), (0.2, 1.0)])
+def test_steering_and_follower_complete_the_default_square(max_speed, rate):
+    """A unicycle driven by the law visits every waypoint, even fast or at a slow control rate."""
+    route = models.pairs([2.0, 0.0, 2.0, 2.0, 0.0, 2.0, 0.0, 0.0])
+    follower = models.WaypointFollower(route, loop=False)
+    x = y = yaw = 0.0
+    dt = 1.0 / rate
+    for _ in range(int(200 * rate)):  # 200 s of simulated time at most
+        follower.update(x, y, tolerance=0.15)
+        if follower.finished:
+            break
+        v, w = models.steer(x, y, yaw, follower.goal, max_speed, max_turn_rate=1.5)
+        assert 0.0 <= v <= max_speed and abs(w) <= 1.5
+        x, y, yaw = x + v * math.cos(yaw) * dt, y + v * math.sin(yaw) * dt, yaw + w * dt
+    assert follower.finished and math.hypot(x, y) <= 0.15
+
+
 def test_follower_with_all_waypoints_reached_does_not_spin():
     follower = models.WaypointFollower([(0.0, 0.0), (0.0, 0.0)], loop=True)
     follower.update(0, 0, 0.1)  # returns although every waypoint is always within tolerance
 
 
 @pytest.mark.parametrize(
-    "flat, ok", [([1.0, 2.0], True), ([], False), ([1.0], False), ([1.0, 2.0, 3.0], False), ([1.0, math.nan], False)]
+    "flat, ok",
+    [
+        ([1.0, 2.0], True),
+        ([], False),
+        ([1.0], False),
+        ([1.0, 2.0, 3.0], False),
+        ([1.0, math.nan], False),
+    ],
 )
 def test_check_waypoints(flat, ok):
     assert (models.check_waypoints(flat) is None) is ok
 
 
 def test_battery_drains_with_time_and_faster_with_motion():
-    battery = models.BatteryModel(capacity_wh=1.0, energy_wh=1.0, idle_draw_w=3.6, motion_draw_w_per_mps=7.2)
+    battery = models.BatteryModel(
+        capacity_wh=1.0, energy_wh=1.0, idle_draw_w=3.6, motion_draw_w_per_mps=7.2
+    )
     battery.advance(100.0)  # 3.6 W * 100 s = 0.1 Wh
     assert battery.fraction == pytest.approx(0.9)
     battery.speed = 0.5  # 3.6 W more
@@ -107,7 +133,9 @@ def test_nearest_in_cone_sees_only_the_front():
     # Returns below range_min are noise, not obstacles.
     assert models.nearest_in_cone(_ranges(0.0, 0.05), -math.pi, inc, 0.1, 8.0, 0.6) == math.inf
     # A scan laid out 0..2pi puts "ahead" at its start and end.
-    assert models.nearest_in_cone([0.3] + [math.inf] * 359, 0.0, inc, 0.1, 8.0, 0.6) == pytest.approx(0.3)
+    assert models.nearest_in_cone(
+        [0.3] + [math.inf] * 359, 0.0, inc, 0.1, 8.0, 0.6
+    ) == pytest.approx(0.3)
 
 
 def test_gate_forward_blocks_only_forward_motion():
@@ -129,11 +157,30 @@ def test_registry_is_lazy_and_complete():
 
 
 def test_composite_argument_groups():
-    argv = ["--fleet-node", "controller", "--ros-args", "-r", "__ns:=/r1",
-            "--fleet-node", "battery", "--ros-args", "--log-level", "debug", "--log-level", "rcl:=warn"]
+    argv = [
+        "--fleet-node",
+        "controller",
+        "--ros-args",
+        "-r",
+        "__ns:=/r1",
+        "--fleet-node",
+        "battery",
+        "--ros-args",
+        "--log-level",
+        "debug",
+        "--log-level",
+        "rcl:=warn",
+    ]
     groups = parse_groups(argv)
     assert groups == [("controller", argv[2:5]), ("battery", argv[7:])]
     assert log_levels(groups[1][1]) == [(None, "debug"), ("rcl", "warn")]
     for bad in ([], ["controller"], ["--fleet-node"], ["--fleet-node", "world", "--ros-args"]):
         with pytest.raises(UsageError):
             parse_groups(bad)
+
+
+def test_nearest_in_cone_takes_minus_inf_as_too_close():
+    """REP-117: -inf is a return closer than range_min, not a missing one."""
+    ranges = [math.inf] * 360
+    ranges[180] = -math.inf  # straight ahead for a scan starting at -pi
+    assert models.nearest_in_cone(ranges, -math.pi, 2 * math.pi / 360, 0.1, 8.0, 0.6) == pytest.approx(0.1)
