@@ -58,7 +58,7 @@ def ros_domain():
 def ros_env(ros_domain, monkeypatch):
     """Environment (also applied to os.environ) confining ROS traffic to this test's domain."""
     env = ros_environment(ros_domain)
-    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION"):
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS"):
         monkeypatch.setenv(key, env[key])
     monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
     return env

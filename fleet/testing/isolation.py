@@ -8,11 +8,12 @@ kernel drops the lock).  Zenoh ports come from the kernel (bind to port 0).
 from __future__ import annotations
 
 import fcntl
-import os
 import random
 import socket
 import tempfile
 from pathlib import Path
+
+from fleet.runtime.environment import ros_environment  # noqa: F401  (re-exported for tests)
 
 # FastDDS maps domain ids to UDP ports; 0..232 is the valid range.  We stay clear of 0 (the
 # default everyone uses) and of the low ids people pick by hand.
@@ -59,14 +60,3 @@ def free_tcp_port(host: str = "127.0.0.1") -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
         sock.bind((host, 0))
         return sock.getsockname()[1]
-
-
-def ros_environment(domain_id: int, base: dict[str, str] | None = None) -> dict[str, str]:
-    """An environment for ROS processes confined to one domain on this host."""
-    env = dict(os.environ if base is None else base)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy, conflicts with the range
-    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    env["PYTHONUNBUFFERED"] = "1"
-    return env

@@ -1,0 +1,455 @@
+"""The agent daemon: receives each fleet's desired state, persists it, and runs it.
+
+Threads, and why:
+- Zenoh callbacks only hand the query to a small pool (`_requests`): a slow callback stalls the
+  whole session.  Pool threads decode, validate, persist and reply.
+- One reconcile thread starts and stops units, so applies are carried out one at a time and in
+  order.  (Node processes die with the agent, even on SIGKILL: the runner's session threads
+  fork them with PR_SET_PDEATHSIG.  Leftovers of anything else are found by their environment
+  marker when the agent starts again.)
+- The main thread owns the Zenoh session: it opens it (retrying while no router answers; robots
+  keep running meanwhile) and closes it on shutdown.  Zenoh reconnects a client by itself when
+  the router comes back, re-declaring queryables and liveliness tokens.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import queue
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from fleet import __version__
+from fleet.control import protocol as p
+from fleet.control.reconcile import plan_changes
+from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
+from fleet.control.state import AgentStore, FleetState
+from fleet.control.units import UNIT_MARKER, Unit
+
+log = logging.getLogger("fleet.agent")
+
+PARAM_TIMEOUT = 15.0
+
+
+class Agent:
+    def __init__(self, name: str, connect: list[str], state_dir: Path, zenoh_config: Path | None = None):
+        problem = p.key_name_problem(name)
+        if problem:
+            raise ValueError(f"agent name {problem}")
+        self.name = name
+        self.connect = connect
+        self.zenoh_config = Path(zenoh_config).resolve() if zenoh_config else None
+        self.store = AgentStore(Path(state_dir).resolve(), name)
+        self.info = p.AgentInfo(
+            name=name,
+            hostname=socket.gethostname(),
+            cores=os.cpu_count() or 1,
+            ros_distro="jazzy",
+            backends=available_backends(),
+            pid=os.getpid(),
+            version=__version__,
+            started_at=time.time(),
+        )
+        self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens
+        self._fleets: dict[str, FleetState] = {}
+        self._units: dict[tuple[str, str], Unit] = {}
+        self._reconciled: dict[str, int] = {}
+        self._tokens: dict[str, Any] = {}
+        self._work: queue.Queue[str | None] = queue.Queue()
+        self._requests = ThreadPoolExecutor(max_workers=4, thread_name_prefix="fleet-agent-req")
+        # Parameter calls take seconds (an rclpy helper process): their own pool, so status and
+        # apply never queue behind them.
+        self._slow_requests = ThreadPoolExecutor(max_workers=2, thread_name_prefix="fleet-agent-param")
+        self._session = None
+        self.stop_event = threading.Event()
+
+    # -- life cycle ------------------------------------------------------------------------------
+
+    def run(self) -> None:
+        """Restore, serve until stop_event is set, then stop every unit."""
+        self.store.claim()
+        # Like any daemon, do not keep the directory we were started from: node processes
+        # inherit our working directory, and one that happens to hold a Python project (the
+        # fleet checkout itself, say) can change what they import.
+        os.chdir(self.store.root)
+        stop_leftover_processes(self.store.root)
+        self._restore()
+        worker = threading.Thread(target=self._reconcile_loop, name="fleet-agent-reconcile")
+        worker.start()
+        try:
+            self._session = open_client_retrying(self.connect, self.zenoh_config, AGENT_LEASE_MS, self.stop_event)
+            if self._session is not None:
+                self._declare(self._session)
+                log.info("agent %s serving on %s", self.name, ", ".join(self.connect))
+                while not self.stop_event.wait(0.5):  # a timed wait lets signal handlers run
+                    pass
+        finally:
+            self.stop_event.set()
+            session, self._session = self._session, None
+            if session is not None:
+                with self._lock:
+                    self._tokens.clear()
+                session.close()
+            self._requests.shutdown(wait=True, cancel_futures=True)
+            self._slow_requests.shutdown(wait=True, cancel_futures=True)
+            self._work.put(None)
+            worker.join()
+
+    def _restore(self) -> None:
+        fleets, problems = self.store.load()
+        for problem in problems:
+            log.error("cannot restore desired state: %s", problem)
+        with self._lock:
+            self._fleets = fleets
+        for fleet in fleets:
+            self._work.put(fleet)
+
+    def _declare(self, session) -> None:
+        # One queryable per operation, with a wildcard fleet chunk: we serve every fleet sent to us.
+        handlers = {
+            p.apply_key("*", self.name): self._handle_apply,
+            p.logs_key("*", self.name): self._handle_logs,
+            p.param_key("*", self.name): self._handle_param,  # on the slow pool, see _enqueue
+            p.agent_status_key("*", self.name): self._handle_status,
+        }
+        self._queryables = []
+        for key, handler in handlers.items():
+            self._queryables.append(session.declare_queryable(key, self._enqueue(handler)))
+        self._update_tokens()
+
+    def _enqueue(self, handler):
+        pool = self._slow_requests if handler == self._handle_param else self._requests
+
+        def on_query(query) -> None:  # runs on a Zenoh thread: hand over, nothing else
+            try:
+                pool.submit(self._answer, handler, query)
+            except RuntimeError:  # pool shut down: we are stopping
+                query.drop()
+
+        return on_query
+
+    def _answer(self, handler, query) -> None:
+        try:
+            try:
+                for key, payload in handler(query):
+                    query.reply(key, payload)
+            except p.ProtocolError as error:
+                query.reply_err(p.error_reply(error))
+            except Exception as error:  # never let a request take the agent down
+                log.exception("request on %s failed", query.key_expr)
+                query.reply_err(p.error_reply(p.ProtocolError(f"agent error: {error}", "agent_error")))
+        finally:
+            query.drop()  # sends the final reply now, not whenever the object is collected
+
+    def _update_tokens(self) -> None:
+        """A liveliness token per served fleet (one with robots), so `fleet status` sees us."""
+        session = self._session
+        if session is None:
+            return
+        with self._lock:
+            served = {fleet for fleet, state in self._fleets.items() if state.request.bundles}
+            for fleet in set(self._tokens) - served:
+                self._tokens.pop(fleet).undeclare()
+            for fleet in served - set(self._tokens):
+                self._tokens[fleet] = session.liveliness().declare_token(p.alive_key(fleet, self.name))
+
+    # -- apply ------------------------------------------------------------------------------------
+
+    def _handle_apply(self, query):
+        request = p.decode(_payload(query), p.ApplyRequest)
+        if request.agent != self.name:
+            raise p.ProtocolError(f"this is agent {self.name!r}, not {request.agent!r}", "wrong_agent")
+        key_fleet = p.fleet_of_key(query.key_expr)
+        if key_fleet != request.fleet:
+            raise p.ProtocolError(f"apply for fleet {request.fleet!r} sent on {query.key_expr}", "invalid")
+        reply = self.apply(request)
+        yield p.apply_key(request.fleet, self.name), p.encode(reply)
+
+    def apply(self, request: p.ApplyRequest) -> p.ApplyReply:
+        """Accept (persist, then schedule) or refuse one desired state; serialised by the lock."""
+        with self._lock:
+            held = self._fleets.get(request.fleet)
+            held_generation = held.generation if held else -1
+            reply = p.ApplyReply(
+                fleet=request.fleet, agent=self.name, generation=request.generation,
+                accepted=False, current_generation=max(held_generation, 0),
+            )  # fmt: skip
+            if request.generation < held_generation:
+                reply.reason = f"superseded: this agent already holds generation {held_generation}"
+                return reply
+            if request.generation == held_generation and held.request.bundles != request.bundles:
+                reply.reason = f"generation {held_generation} was already applied with other content"
+                return reply
+            current = {b.name: b for b in held.request.bundles} if held else {}
+            desired = {b.name: b for b in request.bundles}
+            failed = {name for (fleet, name), unit in self._units.items() if fleet == request.fleet and unit.error}
+            changes = plan_changes(current, desired, failed)
+            # Overrides survive redeploys of an unchanged robot; a changed robot gets the spec's values.
+            overrides = {}
+            if held:
+                overrides = {
+                    robot: values for robot, values in held.overrides.items()
+                    if robot in changes.unchanged or robot in changes.hot_update
+                }  # fmt: skip
+            state = FleetState(request=request, overrides=overrides)
+            self.store.save(state)  # persisted before we acknowledge
+            self._fleets[request.fleet] = state
+            # Units already running exactly this bundle are at the new generation now: saying so
+            # at once lets a no-op deploy finish on its first status poll.
+            for name in changes.unchanged:
+                unit = self._units.get((request.fleet, name))
+                if unit is not None and unit.session is not None and not unit.error and (
+                    unit.bundle.digest, unit.bundle.hot_digest) == (desired[name].digest, desired[name].hot_digest):
+                    unit.generation = request.generation
+        self._work.put(request.fleet)
+        self._update_tokens()
+        reply.accepted = True
+        reply.current_generation = request.generation
+        reply.changes = changes
+        return reply
+
+    # -- reconcile ------------------------------------------------------------------------------
+
+    def _reconcile_loop(self) -> None:
+        while True:
+            fleet = self._work.get()
+            if fleet is None:
+                break
+            pending = {fleet}
+            while True:  # coalesce a burst of applies into one pass per fleet
+                try:
+                    more = self._work.get_nowait()
+                except queue.Empty:
+                    break
+                if more is None:
+                    self._work.put(None)
+                    break
+                pending.add(more)
+            for name in sorted(pending):
+                try:
+                    self._reconcile(name)
+                except Exception:
+                    log.exception("reconciling fleet %s failed", name)
+        self._stop_all_units()
+
+    def _reconcile(self, fleet: str) -> None:
+        with self._lock:
+            state = self._fleets.get(fleet)
+            if state is None:
+                return
+            desired = {b.name: b for b in state.request.bundles}
+            units = {name: unit for (f, name), unit in self._units.items() if f == fleet}
+            overrides = {robot: dict(values) for robot, values in state.overrides.items()}
+            generation = state.generation
+            domain_id = state.request.domain_id
+        changes = plan_changes(
+            {name: unit.bundle for name, unit in units.items()},
+            desired,
+            {name for name, unit in units.items() if unit.error or unit.session is None},
+        )
+        # Stop first (in parallel: each stop may wait seconds for a node to exit), then start.
+        leaving = [units[name] for name in changes.stop + changes.restart]
+        stoppers = [threading.Thread(target=unit.stop) for unit in leaving]
+        for thread in stoppers:
+            thread.start()
+        for thread in stoppers:
+            thread.join()
+        with self._lock:
+            for name in changes.stop:
+                self._units.pop((fleet, name), None)
+        for name in changes.start + changes.restart:
+            unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), self._unit_env(domain_id))
+            unit.generation = generation
+            with self._lock:
+                self._units[(fleet, name)] = unit
+            unit.start(overrides.get(name, {}))
+            if unit.error:
+                log.error("robot %s of fleet %s failed to start: %s", name, fleet, unit.error)
+        for name in changes.hot_update:
+            units[name].hot_update(desired[name], overrides.get(name, {}))
+        for name in changes.hot_update + changes.unchanged:
+            units[name].generation = generation
+        with self._lock:
+            self._reconciled[fleet] = generation
+        for name in changes.stop:
+            shutil.rmtree(self.store.unit_dir(fleet, name), ignore_errors=True)
+
+    def _unit_env(self, domain_id: int) -> dict[str, str]:
+        from fleet.runtime.environment import ros_environment
+
+        env = ros_environment(domain_id)
+        env[UNIT_MARKER] = str(self.store.root)
+        return env
+
+    def _stop_all_units(self) -> None:
+        with self._lock:
+            units = list(self._units.values())
+            self._units.clear()
+        threads = [threading.Thread(target=unit.stop) for unit in units]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+
+    # -- status ---------------------------------------------------------------------------------
+
+    def _handle_status(self, query):
+        wanted = p.fleet_of_key(query.key_expr)
+        with self._lock:
+            served = sorted(f for f, s in self._fleets.items() if s.request.bundles)
+        if wanted and wanted not in served:  # online, but running nothing of that fleet
+            yield p.agent_status_key(wanted, self.name), p.encode(self.status(None))
+            return
+        if not wanted and not served:  # idle agent asked about every fleet: still say we are here
+            yield p.agent_status_key("*", self.name), p.encode(self.status(None))
+        for fleet in [wanted] if wanted else served:
+            yield p.agent_status_key(fleet, self.name), p.encode(self.status(fleet))
+
+    def status(self, fleet: str | None) -> p.StatusReply:
+        with self._lock:
+            state = self._fleets.get(fleet) if fleet else None
+            units = sorted(
+                ((name, unit) for (f, name), unit in self._units.items() if f == fleet), key=lambda item: item[0]
+            )
+            reconciled = self._reconciled.get(fleet, 0) if fleet else 0
+            overrides = dict(state.overrides) if state else {}
+        reply = p.StatusReply(agent=self.info, fleet=fleet, time=time.time())
+        if state is None:
+            return reply
+        reply.generation = state.generation
+        reply.reconciled_generation = reconciled
+        reply.domain_id = state.request.domain_id
+        seen = set()
+        for name, unit in units:
+            reply.robots.append(unit.state(overrides.get(name, {})))
+            world = unit.world_status()
+            if world is not None:
+                reply.world = world
+            seen.add(name)
+        for bundle in state.request.bundles:  # accepted, not yet started by the reconcile thread
+            if bundle.name not in seen:
+                reply.robots.append(
+                    p.RobotState(name=bundle.name, kind=bundle.kind, state="pending", digest=bundle.digest,
+                                 hot_digest=bundle.hot_digest)  # fmt: skip
+                )
+        return reply
+
+    # -- logs -----------------------------------------------------------------------------------
+
+    def _handle_logs(self, query):
+        request = p.decode(_payload(query), p.LogsRequest)
+        unit = self._unit(request.fleet, request.robot)
+        nodes = [request.node] if request.node else unit.node_names()
+        if request.node and request.node not in unit.node_names():
+            raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
+        lines: list[p.LogLine] = []
+        cursor: dict[str, int] = {}
+        for node in nodes:
+            path = unit.log_file(node)
+            start = (request.cursor or {}).get(node)
+            text_lines, cursor[node] = read_log(path, request.tail, start)
+            lines.extend(p.LogLine(node=node, text=line) for line in text_lines)
+        yield p.logs_key(request.fleet, self.name), p.encode(p.LogsReply(lines=lines, cursor=cursor))
+
+    def _unit(self, fleet: str, robot: str) -> Unit:
+        with self._lock:
+            unit = self._units.get((fleet, robot))
+        if unit is None:
+            raise p.ProtocolError(f"robot {robot!r} of fleet {fleet!r} does not run on agent {self.name}", "not_found")
+        return unit
+
+    # -- parameters -----------------------------------------------------------------------------
+
+    def _handle_param(self, query):
+        request = p.decode(_payload(query), p.ParamRequest)
+        unit = self._unit(request.fleet, request.robot)
+        fqn = unit.node_fqn(request.node)
+        if fqn is None:
+            raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
+        reply = call_parameter_service(fqn, request, unit.env)
+        if request.op == "set" and reply.ok:
+            self._record_override(request, fqn, reply.value)
+        yield p.param_key(request.fleet, self.name), p.encode(reply)
+
+    def _record_override(self, request: p.ParamRequest, fqn: str, value: Any) -> None:
+        """Keep an accepted set across restarts: persist it and rewrite the unit's params file."""
+        with self._lock:
+            state = self._fleets.get(request.fleet)
+            if state is None:
+                return
+            robot = state.overrides.setdefault(request.robot, {})
+            robot.setdefault(fqn, {})[request.name] = value
+            self.store.save(state)
+            overrides = {fqn_: dict(values) for fqn_, values in robot.items()}
+            unit = self._units.get((request.fleet, request.robot))
+        if unit is not None:
+            unit.write_files(overrides)
+
+
+def _payload(query) -> bytes | None:
+    payload = query.payload
+    return None if payload is None else payload.to_bytes()
+
+
+def read_log(path: Path | None, tail: int, start: int | None) -> tuple[list[str], int]:
+    """Lines of a log file: the last `tail` ones (start None) or those after byte offset `start`."""
+    if path is None or not path.exists():
+        return [], 0
+    size = path.stat().st_size
+    with open(path, "rb") as stream:
+        if start is None or start > size:  # first read, or the file was rotated
+            stream.seek(max(0, size - 256 * max(tail, 1)))
+            data = stream.read()
+            lines = data.decode("utf-8", "replace").splitlines()
+            if stream.tell() > len(data) and lines:  # first line may be cut
+                lines = lines[1:]
+            return lines[-tail:] if tail else [], size
+        stream.seek(start)
+        data = stream.read(size - start)
+    complete = data.rfind(b"\n") + 1  # only whole lines; the rest comes next time
+    return data[:complete].decode("utf-8", "replace").splitlines(), start + complete
+
+
+def call_parameter_service(fqn: str, request: p.ParamRequest, env: dict[str, str]) -> p.ParamReply:
+    """Run the rclpy helper in a subprocess (rclpy must not share the agent's process)."""
+    import json
+
+    command = [sys.executable, "-m", "fleet.control.param_helper", request.op, fqn, request.name]
+    if request.op == "set":
+        command.append(json.dumps(request.value))
+    try:
+        done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=PARAM_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        return p.ParamReply(ok=False, reason=f"no answer from {fqn} within {PARAM_TIMEOUT:.0f} s")
+    try:
+        return p.ParamReply.model_validate_json(done.stdout.strip().splitlines()[-1])
+    except Exception:
+        reason = (done.stderr.strip().splitlines() or ["parameter helper failed"])[-1]
+        return p.ParamReply(ok=False, reason=reason)
+
+
+def available_backends() -> list[str]:
+    backends = ["embedded"]
+    if shutil.which("ros2"):
+        backends.append("ros2-launch")
+    return backends
+
+
+def stop_leftover_processes(state_dir: Path) -> int:
+    """Processes left by a previous run of this agent (found by their environment marker)."""
+    from fleet.testing.processes import processes_marked, terminate
+
+    leftovers = processes_marked(str(state_dir), UNIT_MARKER)
+    if leftovers:
+        log.warning("stopping %d processes left from a previous run", len(leftovers))
+        terminate(leftovers)
+    return len(leftovers)
+

@@ -1,0 +1,108 @@
+"""The CLI's side of the protocol: one short-lived Zenoh client session and typed requests."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from fleet.control import protocol as p
+from fleet.control.session import open_client
+from fleet.errors import ControlError
+
+STATUS_TIMEOUT = 3.0
+APPLY_TIMEOUT = 10.0
+
+
+class Unreachable(Exception):
+    """No agent answered (none is connected under that name)."""
+
+
+class ControlClient:
+    def __init__(self, connect: list[str], zenoh_config: Path | None = None):
+        self.connect = connect
+        self.session = open_client(connect, zenoh_config)
+
+    def close(self) -> None:
+        self.session.close()
+
+    def __enter__(self) -> "ControlClient":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- status ---------------------------------------------------------------------------------
+
+    def status(self, fleet: str | None = None, timeout: float = STATUS_TIMEOUT):
+        """One wildcard get: a reply from every agent (per fleet it serves) and from the registry."""
+        import zenoh
+
+        statuses: list[p.StatusReply] = []
+        registries: list[p.RegistryReply] = []
+        replies = self.session.get(
+            p.status_query(fleet),
+            target=zenoh.QueryTarget.ALL,
+            consolidation=zenoh.QueryConsolidation(zenoh.ConsolidationMode.NONE),
+            timeout=timeout,
+        )
+        for reply in replies:
+            if reply.ok is None:
+                continue
+            data = reply.ok.payload.to_bytes()
+            kind = _kind(data)
+            try:
+                if kind == "status":
+                    statuses.append(p.decode(data, p.StatusReply))
+                elif kind == "registry":
+                    registries.append(p.decode(data, p.RegistryReply))
+            except p.ProtocolError:
+                continue  # another version of fleet on the same router: skip, don't crash
+        return statuses, registries
+
+    # -- requests to one agent ------------------------------------------------------------------
+
+    def send_applies(self, requests: list[p.ApplyRequest], timeout: float = APPLY_TIMEOUT):
+        """Send every apply at once, then collect: agent -> ApplyReply | ControlError."""
+        pending = []
+        for request in requests:
+            handler = self.session.get(
+                p.apply_key(request.fleet, request.agent), payload=p.encode(request), timeout=timeout
+            )
+            pending.append((request.agent, handler))
+        results: dict[str, p.ApplyReply | ControlError] = {}
+        for agent, handler in pending:
+            try:
+                results[agent] = _one_reply(handler, p.ApplyReply, f"agent {agent}")
+            except ControlError as error:
+                results[agent] = error
+        return results
+
+    def request(self, key: str, message: p.Message, model: type[p.Message], what: str, timeout: float = 20.0):
+        handler = self.session.get(key, payload=p.encode(message), timeout=timeout)
+        return _one_reply(handler, model, what)
+
+    def put_plan(self, plan: p.PlanRecord) -> None:
+        self.session.put(p.plan_key(plan.fleet), p.encode(plan))
+
+
+def _kind(data: bytes) -> str | None:
+    try:
+        return json.loads(data).get("kind")
+    except (ValueError, AttributeError):
+        return None
+
+
+def _one_reply(handler, model, what: str):
+    for reply in handler:
+        if reply.ok is not None:
+            try:
+                return p.decode(reply.ok.payload.to_bytes(), model)
+            except p.ProtocolError as error:
+                raise ControlError(f"{what} answered: {error}") from None
+        raw = reply.err.payload.to_bytes()
+        try:
+            error = p.decode(raw, p.ErrorReply)
+            raise ControlError(f"{what} refused the request: {error.error}")
+        except p.ProtocolError:
+            raise ControlError(f"{what}: {raw.decode('utf-8', 'replace')}") from None
+    raise ControlError(f"{what} is unreachable (not connected to the router, or it timed out)")

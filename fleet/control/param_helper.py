@@ -1,0 +1,109 @@
+"""Get or set one ROS parameter of a running node through its parameter services.
+
+Run by the agent as a subprocess, in the fleet's ROS environment (its ROS_DOMAIN_ID):
+
+    python -m fleet.control.param_helper get /robot1/controller max_speed
+    python -m fleet.control.param_helper set /robot1/controller max_speed 0.8   # value as JSON
+
+Prints one JSON line: {"v": 1, "kind": "param_reply", "ok": ..., "value": ..., "reason": ...}.
+A set is typed after the parameter's current type (1 becomes 1.0 for a double, as people
+expect); the node's own checks (ranges, read-only) decide, and its reason is passed back.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+SERVICE_TIMEOUT = 8.0
+
+
+def _reply(ok: bool, value=None, reason: str = "") -> None:
+    print(json.dumps({"v": 1, "kind": "param_reply", "ok": ok, "value": value, "reason": reason}), flush=True)
+
+
+def _python_value(message):
+    from rcl_interfaces.msg import ParameterType as T
+
+    kinds = {
+        T.PARAMETER_BOOL: "bool_value",
+        T.PARAMETER_INTEGER: "integer_value",
+        T.PARAMETER_DOUBLE: "double_value",
+        T.PARAMETER_STRING: "string_value",
+        T.PARAMETER_BOOL_ARRAY: "bool_array_value",
+        T.PARAMETER_INTEGER_ARRAY: "integer_array_value",
+        T.PARAMETER_DOUBLE_ARRAY: "double_array_value",
+        T.PARAMETER_STRING_ARRAY: "string_array_value",
+    }
+    field = kinds.get(message.type)
+    if field is None:
+        return None
+    value = getattr(message, field)
+    return list(value) if field.endswith("array_value") else value
+
+
+def _coerce(value, current_type: int):
+    """Promote ints to floats where the parameter is a double (or double array)."""
+    from rcl_interfaces.msg import ParameterType as T
+
+    if current_type == T.PARAMETER_DOUBLE and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if current_type == T.PARAMETER_DOUBLE_ARRAY and isinstance(value, list):
+        return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value]
+    return value
+
+
+def _call(node, service_type, name: str, request):
+    import rclpy
+
+    client = node.create_client(service_type, name)
+    if not client.wait_for_service(timeout_sec=SERVICE_TIMEOUT):
+        raise TimeoutError(f"service {name} is not available (is the node running?)")
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=SERVICE_TIMEOUT)
+    if not future.done():
+        raise TimeoutError(f"no answer from {name}")
+    return future.result()
+
+
+def main(argv: list[str]) -> int:
+    op, fqn, name = argv[0], argv[1], argv[2]
+    import rclpy
+    from rclpy.parameter import Parameter
+    from rcl_interfaces.msg import ParameterType
+    from rcl_interfaces.srv import GetParameters, SetParameters
+
+    rclpy.init(args=["--ros-args", "--disable-rosout-logs"])
+    node = rclpy.create_node(f"fleet_param_{__import__('os').getpid()}")
+    try:
+        got = _call(node, GetParameters, f"{fqn}/get_parameters", GetParameters.Request(names=[name]))
+        current = got.values[0] if got.values else None
+        if current is None or current.type == ParameterType.PARAMETER_NOT_SET:
+            _reply(False, reason=f"node {fqn} has no parameter {name!r}")
+            return 0
+        if op == "get":
+            _reply(True, _python_value(current))
+            return 0
+        value = _coerce(json.loads(argv[3]), current.type)
+        try:
+            message = Parameter(name, value=value).to_parameter_msg()
+        except Exception as error:
+            _reply(False, reason=f"value {value!r} cannot be a ROS parameter: {error}")
+            return 0
+        result = _call(node, SetParameters, f"{fqn}/set_parameters", SetParameters.Request(parameters=[message]))
+        outcome = result.results[0]
+        if outcome.successful:
+            _reply(True, value)
+        else:
+            _reply(False, value, outcome.reason or "refused by the node")
+        return 0
+    except TimeoutError as error:
+        _reply(False, reason=str(error))
+        return 0
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

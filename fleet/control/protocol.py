@@ -1,0 +1,440 @@
+"""The control-plane protocol: Zenoh key space and versioned JSON messages.
+
+Every message is a JSON object with `v` (protocol version) and `kind`.  Messages are validated
+with pydantic on receipt; anything malformed, truncated, oversized, of another version or naming
+files outside a bundle directory raises ProtocolError, which the receiver turns into an error
+reply.  docs/control-plane.md is the reference for people; keep the two in step.
+
+Key space (every key lives under the fleet's name, so several fleets share one router):
+
+    fleet/<fleet>/agent/<agent>/apply      queryable  ApplyRequest -> ApplyReply
+    fleet/<fleet>/agent/<agent>/logs       queryable  LogsRequest  -> LogsReply
+    fleet/<fleet>/agent/<agent>/param      queryable  ParamRequest -> ParamReply
+    fleet/<fleet>/status/agent/<agent>     queryable  (no payload) -> StatusReply
+    fleet/<fleet>/status/registry          queryable  (router)     -> RegistryReply
+    fleet/<fleet>/plan                     put        PlanRecord (deploy -> router registry)
+    fleet/<fleet>/alive/agent/<agent>      liveliness token, one per fleet the agent serves
+
+An agent declares its queryables with `*` in the fleet chunk: it serves whatever fleet is
+deployed to it, and learns that it serves a fleet from the first apply it accepts.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+VERSION = 1
+
+# Limits: far above a real robot's launch description, far below what could hurt an agent.
+MAX_MESSAGE_BYTES = 8 * 1024 * 1024
+MAX_FILE_BYTES = 1024 * 1024
+MAX_FILES_PER_BUNDLE = 64
+MAX_BUNDLES = 1024
+MAX_LOG_LINES = 10_000
+
+# A bundle file name is one plain path component: no separators, no `..`, nothing hidden.
+_FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}")
+_ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
+# Fleet and agent names: the rule of fleet.spec.names.key_name_problem, repeated here so that
+# `fleet status` need not import the spec package (start-up time); a test checks they agree.
+_KEY_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,62}")
+
+
+class ProtocolError(ValueError):
+    """A message that cannot be accepted; `code` is machine-readable, str() is for people."""
+
+    def __init__(self, message: str, code: str = "invalid"):
+        super().__init__(message)
+        self.code = code
+
+
+# ---------------------------------------------------------------------------------------------
+# Keys
+
+
+def apply_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/agent/{agent}/apply"
+
+
+def logs_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/agent/{agent}/logs"
+
+
+def param_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/agent/{agent}/param"
+
+
+def agent_status_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/status/agent/{agent}"
+
+
+def registry_key(fleet: str) -> str:
+    return f"fleet/{fleet}/status/registry"
+
+
+def status_query(fleet: str | None = None) -> str:
+    """One wildcard get on this key reaches every agent (and the router's registry)."""
+    return f"fleet/{fleet or '*'}/status/**"
+
+
+def plan_key(fleet: str) -> str:
+    return f"fleet/{fleet}/plan"
+
+
+def alive_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/alive/agent/{agent}"
+
+
+def fleet_of_key(key: str) -> str | None:
+    """The fleet chunk of a `fleet/<fleet>/...` key, or None when it is a wildcard."""
+    parts = str(key).split("/")
+    if len(parts) < 2 or parts[0] != "fleet" or "*" in parts[1] or "$" in parts[1]:
+        return None
+    return parts[1]
+
+
+# ---------------------------------------------------------------------------------------------
+# Field checks
+
+
+def key_name_problem(name: object) -> str | None:
+    if not isinstance(name, str) or not _KEY_NAME.fullmatch(name):
+        return f"{name!r} is not a valid name: use letters, digits, '_', '-', '.' (not first), at most 63"
+    return None
+
+
+def _check_key_name(value: str) -> str:
+    problem = key_name_problem(value)
+    if problem:
+        raise ValueError(problem)
+    return value
+
+
+def _check_ros_name(value: str) -> str:
+    if not _ROS_TOKEN.fullmatch(value):
+        raise ValueError(f"{value!r} is not a valid ROS name")
+    return value
+
+
+def check_file_name(name: str) -> str:
+    """A bundle file name must stay inside the unit directory: one plain component."""
+    if not isinstance(name, str) or not _FILE_NAME.fullmatch(name) or ".." in name:
+        raise ValueError(f"file name {name!r} is not a plain file name (no '/', no '..', no leading '.')")
+    return name
+
+
+class Message(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    v: Literal[1] = VERSION
+
+
+ParamValue = bool | int | float | str | list[bool] | list[int] | list[float] | list[str]
+
+
+# ---------------------------------------------------------------------------------------------
+# Apply: a fleet's complete desired state for one agent
+
+
+class BundleMessage(BaseModel):
+    """fleet.expand.Bundle on the wire (see docs/architecture.md, Bundles)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str
+    kind: Literal["robot", "world"]
+    entry: str
+    files: dict[str, str]
+    options: dict[str, str | int | float | bool] = {}
+    hot_files: list[str] = []
+    digest: str = Field(pattern=r"^[0-9a-f]{16,128}$")
+
+    @field_validator("name")
+    @classmethod
+    def _name_is_ros_name(cls, value: str) -> str:
+        return _check_ros_name(value)
+
+    @field_validator("entry")
+    @classmethod
+    def _entry_plain(cls, value: str) -> str:
+        return check_file_name(value)
+
+    @field_validator("files")
+    @classmethod
+    def _files_plain_and_small(cls, files: dict[str, str]) -> dict[str, str]:
+        if len(files) > MAX_FILES_PER_BUNDLE:
+            raise ValueError(f"{len(files)} files, more than {MAX_FILES_PER_BUNDLE}")
+        for name, text in files.items():
+            check_file_name(name)
+            if len(text.encode()) > MAX_FILE_BYTES:
+                raise ValueError(f"file {name!r} is larger than {MAX_FILE_BYTES} bytes")
+        return files
+
+    @model_validator(mode="after")
+    def _entry_and_hot_files_exist(self) -> "BundleMessage":
+        if self.entry not in self.files:
+            raise ValueError(f"entry {self.entry!r} is not among the bundle's files")
+        for name in self.hot_files:
+            if name not in self.files:
+                raise ValueError(f"hot file {name!r} is not among the bundle's files")
+        return self
+
+    @property
+    def hot_digest(self) -> str:
+        return hot_digest(self.files, self.hot_files)
+
+    @classmethod
+    def from_bundle(cls, bundle: Any) -> "BundleMessage":
+        return cls(
+            name=bundle.name,
+            kind=bundle.kind,
+            entry=bundle.entry,
+            files=dict(bundle.files),
+            options=dict(bundle.options),
+            hot_files=list(bundle.hot_files),
+            digest=bundle.digest,
+        )
+
+
+def hot_digest(files: dict[str, str], hot_files: list[str]) -> str:
+    """Hash of the files applied in place: a change here needs a hot update, not a restart."""
+    h = hashlib.sha256()
+    for name in sorted(hot_files):
+        h.update(name.encode() + b"\0" + files.get(name, "").encode() + b"\0")
+    return h.hexdigest()
+
+
+class ApplyRequest(Message):
+    kind: Literal["apply"] = "apply"
+    fleet: str
+    agent: str
+    generation: int = Field(ge=0)
+    domain_id: int = Field(ge=0, le=232)
+    bundles: list[BundleMessage] = Field(max_length=MAX_BUNDLES)
+    sent_at: float = 0.0
+
+    @field_validator("fleet", "agent")
+    @classmethod
+    def _names_are_key_chunks(cls, value: str) -> str:
+        return _check_key_name(value)
+
+    @model_validator(mode="after")
+    def _unique_bundle_names(self) -> "ApplyRequest":
+        names = [bundle.name for bundle in self.bundles]
+        duplicates = sorted({name for name in names if names.count(name) > 1})
+        if duplicates:
+            raise ValueError(f"duplicate bundle names: {', '.join(duplicates)}")
+        return self
+
+
+class Changes(BaseModel):
+    """What an apply does to the units of one agent, by robot name."""
+
+    start: list[str] = []
+    stop: list[str] = []
+    restart: list[str] = []
+    hot_update: list[str] = []
+    unchanged: list[str] = []
+
+    @property
+    def nothing(self) -> bool:
+        return not (self.start or self.stop or self.restart or self.hot_update)
+
+
+class ApplyReply(Message):
+    kind: Literal["apply_reply"] = "apply_reply"
+    fleet: str
+    agent: str
+    generation: int
+    accepted: bool
+    current_generation: int  # the generation the agent holds after this request
+    reason: str = ""  # why it was refused (e.g. superseded by a later generation)
+    changes: Changes = Changes()
+
+
+# ---------------------------------------------------------------------------------------------
+# Status
+
+
+class NodeState(BaseModel):
+    name: str
+    fqn: str = ""
+    state: str  # as reported by the runner: starting, running, exited, failed, stopped, ...
+    pid: int | None = None
+    restarts: int = 0
+    exit_code: int | None = None
+    uptime: float | None = None
+
+
+RobotStateName = Literal["pending", "starting", "running", "degraded", "failed", "stopped"]
+
+
+class RobotState(BaseModel):
+    name: str
+    kind: Literal["robot", "world"] = "robot"
+    state: RobotStateName
+    nodes: list[NodeState] = []
+    running: int = 0
+    total: int = 0
+    restarts: int = 0
+    generation: int = 0  # the apply generation this unit last reconciled to
+    digest: str = ""
+    hot_digest: str = ""
+    overrides: dict[str, dict[str, Any]] = {}  # node -> parameter -> value set live
+    error: str = ""
+
+
+class AgentInfo(BaseModel):
+    name: str
+    hostname: str
+    cores: int
+    ros_distro: str = "jazzy"
+    backends: list[str] = []
+    pid: int
+    version: str
+    started_at: float
+
+
+class StatusReply(Message):
+    kind: Literal["status"] = "status"
+    agent: AgentInfo
+    fleet: str | None  # None: the agent serves no fleet yet
+    generation: int = 0  # desired (accepted) generation
+    reconciled_generation: int = 0  # the generation the units have been brought to
+    domain_id: int | None = None
+    robots: list[RobotState] = []
+    world: dict[str, Any] | None = None  # the world unit's status file, when this agent runs it
+    time: float
+
+
+# ---------------------------------------------------------------------------------------------
+# Logs and parameters
+
+
+class LogsRequest(Message):
+    kind: Literal["logs"] = "logs"
+    fleet: str
+    robot: str
+    node: str | None = None
+    tail: int = Field(50, ge=0, le=MAX_LOG_LINES)
+    # Follow mode: byte offset per node log already seen; None on the first request.
+    cursor: dict[str, int] | None = None
+
+
+class LogLine(BaseModel):
+    node: str
+    text: str
+
+
+class LogsReply(Message):
+    kind: Literal["logs_reply"] = "logs_reply"
+    lines: list[LogLine]
+    cursor: dict[str, int]
+
+
+class ParamRequest(Message):
+    kind: Literal["param"] = "param"
+    fleet: str
+    robot: str
+    node: str
+    name: str = Field(min_length=1, max_length=200, pattern=r"^[A-Za-z_][A-Za-z0-9_.]*$")
+    op: Literal["get", "set"]
+    value: ParamValue | None = None
+
+    @model_validator(mode="after")
+    def _set_has_value(self) -> "ParamRequest":
+        if self.op == "set" and self.value is None:
+            raise ValueError("a set needs a value")
+        return self
+
+
+class ParamReply(Message):
+    kind: Literal["param_reply"] = "param_reply"
+    ok: bool
+    value: ParamValue | None = None
+    reason: str = ""
+
+
+# ---------------------------------------------------------------------------------------------
+# Router registry: what was deployed where, and which agents were seen when
+
+
+class PlanRecord(Message):
+    kind: Literal["plan"] = "plan"
+    fleet: str
+    generation: int
+    robots: dict[str, str]  # robot (or "world") -> agent
+    deployed_at: float
+
+
+class AgentSeen(BaseModel):
+    online: bool
+    last_seen: float
+
+
+class RegistryReply(Message):
+    kind: Literal["registry"] = "registry"
+    fleet: str
+    plan: PlanRecord | None = None
+    agents: dict[str, AgentSeen] = {}
+
+
+class ErrorReply(Message):
+    kind: Literal["error"] = "error"
+    code: str
+    error: str
+
+
+# ---------------------------------------------------------------------------------------------
+# Encoding
+
+
+def encode(message: BaseModel) -> bytes:
+    return message.model_dump_json().encode()
+
+
+def decode(payload: bytes | None, model: type[Message]) -> Any:
+    """Parse and validate one message; raise ProtocolError with a readable reason."""
+    if payload is None:
+        raise ProtocolError("empty message", "malformed")
+    if len(payload) > MAX_MESSAGE_BYTES:
+        raise ProtocolError(f"message of {len(payload)} bytes exceeds {MAX_MESSAGE_BYTES}", "too_large")
+    try:
+        data = json.loads(payload)
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ProtocolError(f"malformed JSON (truncated?): {error}", "malformed") from None
+    if not isinstance(data, dict):
+        raise ProtocolError("a message must be a JSON object", "malformed")
+    if data.get("v") != VERSION:
+        raise ProtocolError(
+            f"unsupported protocol version {data.get('v')!r} (this side speaks {VERSION})", "version"
+        )
+    expected_kind = model.model_fields["kind"].default
+    if data.get("kind") == "error" and model is not ErrorReply:
+        error = ErrorReply.model_validate(data)
+        raise ProtocolError(error.error, error.code)
+    if data.get("kind") != expected_kind:
+        raise ProtocolError(f"expected a {expected_kind!r} message, got {data.get('kind')!r}", "malformed")
+    try:
+        return model.model_validate(data)
+    except ValidationError as error:
+        raise ProtocolError(_short_validation_error(error), "invalid") from None
+
+
+def _short_validation_error(error: ValidationError) -> str:
+    problems = []
+    for item in error.errors()[:5]:
+        where = ".".join(str(part) for part in item["loc"])
+        problems.append(f"{where}: {item['msg']}" if where else item["msg"])
+    more = error.error_count() - len(problems)
+    return "; ".join(problems) + (f" (and {more} more)" if more > 0 else "")
+
+
+def error_reply(error: Exception) -> bytes:
+    code = getattr(error, "code", "error")
+    return encode(ErrorReply(code=code, error=str(error)))

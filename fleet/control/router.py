@@ -1,0 +1,118 @@
+"""The router: a Zenoh session in router mode, plus the registry that remembers what the CLI can't.
+
+The CLI is short-lived, so someone must remember which agents were seen when, and what was
+deployed where (to show the robots of an offline agent).  The router is always there, so it
+keeps that registry: it watches the agents' liveliness tokens, stores the plan record each
+deploy puts on `fleet/<fleet>/plan`, and answers `fleet/<fleet>/status/registry` as part of the
+one wildcard status query.  With --state-dir the registry survives router restarts.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from pathlib import Path
+
+from fleet.control import protocol as p
+from fleet.control.state import write_atomic
+
+log = logging.getLogger("fleet.router")
+
+
+class Registry:
+    def __init__(self, state_file: Path | None = None):
+        self.state_file = state_file
+        self._lock = threading.Lock()
+        self._plans: dict[str, p.PlanRecord] = {}
+        self._agents: dict[str, dict[str, p.AgentSeen]] = {}  # fleet -> agent -> seen
+        self._load()
+
+    def _load(self) -> None:
+        if self.state_file is None or not self.state_file.exists():
+            return
+        try:
+            data = json.loads(self.state_file.read_text())
+            self._plans = {f: p.PlanRecord.model_validate(v) for f, v in data.get("plans", {}).items()}
+            for fleet, agents in data.get("agents", {}).items():
+                # After a router restart nobody is known to be online until its token shows up.
+                self._agents[fleet] = {
+                    a: p.AgentSeen(online=False, last_seen=s["last_seen"]) for a, s in agents.items()
+                }
+        except Exception as error:
+            log.error("ignoring unreadable registry %s: %s", self.state_file, error)
+
+    def _save(self) -> None:
+        if self.state_file is None:
+            return
+        data = {
+            "plans": {f: plan.model_dump() for f, plan in self._plans.items()},
+            "agents": {f: {a: s.model_dump() for a, s in agents.items()} for f, agents in self._agents.items()},
+        }
+        write_atomic(self.state_file, json.dumps(data).encode())
+
+    # Zenoh callbacks: tiny dictionary updates (and a small file write on a deploy).
+
+    def on_liveliness(self, sample) -> None:
+        import zenoh
+
+        parts = str(sample.key_expr).split("/")  # fleet/<fleet>/alive/agent/<agent>
+        if len(parts) != 5:
+            return
+        fleet, agent = parts[1], parts[4]
+        online = sample.kind == zenoh.SampleKind.PUT
+        with self._lock:
+            self._agents.setdefault(fleet, {})[agent] = p.AgentSeen(online=online, last_seen=time.time())
+
+    def on_plan(self, sample) -> None:
+        try:
+            plan = p.decode(sample.payload.to_bytes(), p.PlanRecord)
+        except p.ProtocolError as error:
+            log.warning("ignoring plan on %s: %s", sample.key_expr, error)
+            return
+        with self._lock:
+            held = self._plans.get(plan.fleet)
+            if held is None or plan.generation >= held.generation:
+                self._plans[plan.fleet] = plan
+                if not plan.robots:  # `fleet down`: forget the fleet
+                    self._plans.pop(plan.fleet)
+                    self._agents.pop(plan.fleet, None)
+                self._save()
+
+    def on_query(self, query) -> None:
+        wanted = p.fleet_of_key(query.key_expr)
+        with self._lock:
+            fleets = [wanted] if wanted else sorted(set(self._plans) | set(self._agents))
+            replies = []
+            now = time.time()
+            for fleet in fleets:
+                agents = {
+                    a: p.AgentSeen(online=s.online, last_seen=now if s.online else s.last_seen)
+                    for a, s in self._agents.get(fleet, {}).items()
+                }
+                replies.append((fleet, p.RegistryReply(fleet=fleet, plan=self._plans.get(fleet), agents=agents)))
+        for fleet, reply in replies:
+            query.reply(p.registry_key(fleet), p.encode(reply))
+
+
+def serve_router(session, registry: Registry):
+    """Declare the registry's entities on an open router session; returns them (keep them alive)."""
+    return [
+        session.liveliness().declare_subscriber("fleet/*/alive/agent/*", registry.on_liveliness, history=True),
+        session.declare_subscriber("fleet/*/plan", registry.on_plan),
+        session.declare_queryable("fleet/*/status/registry", registry.on_query),
+    ]
+
+
+def run_router(listen: list[str], zenoh_config: Path | None, state_dir: Path | None, stop: threading.Event) -> None:
+    from fleet.control.session import open_router
+
+    registry = Registry(state_dir / "registry.json" if state_dir else None)
+    with open_router(listen, zenoh_config) as session:
+        entities = serve_router(session, registry)
+        log.info("router listening on %s", ", ".join(listen))
+        while not stop.wait(0.5):  # a timed wait lets signal handlers run
+            pass
+        for entity in entities:
+            entity.undeclare()

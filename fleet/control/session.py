@@ -1,0 +1,143 @@
+"""Zenoh session configuration for the router, the agents and the CLI.
+
+Our settings: explicit endpoints (never every interface), multicast scouting and gossip off
+(peers are found through the configured router only), a short link lease on agents so a dead
+agent disappears quickly.  Security (TLS, mutual TLS, user/password, access control) is not coded
+here: it comes from a Zenoh JSON5 config file given with --zenoh-config or FLEET_ZENOH_CONFIG.
+That file is the base; our settings are added where it leaves them unset, command-line
+endpoints always win, and the mode is always the process's role.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from fleet.errors import ControlError, FleetError
+
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+ENDPOINT_VARIABLE = "FLEET_CONNECT"
+CONFIG_VARIABLE = "FLEET_ZENOH_CONFIG"
+AGENT_LEASE_MS = 2000  # link lease of agents: a frozen agent is dropped after 2 s (default 10 s)
+ROUTER_LEASE_MS = 2000
+
+
+def default_endpoint() -> str:
+    return os.environ.get(ENDPOINT_VARIABLE) or DEFAULT_ENDPOINT
+
+
+def config_file(explicit: str | Path | None) -> Path | None:
+    value = explicit or os.environ.get(CONFIG_VARIABLE)
+    if not value:
+        return None
+    path = Path(value).expanduser()
+    if not path.is_file():
+        raise FleetError(f"Zenoh config file {path} does not exist")
+    return path
+
+
+def _base_config(user_config: Path | None):
+    import zenoh
+
+    if user_config is None:
+        return zenoh.Config()
+    try:
+        return zenoh.Config.from_file(str(user_config))
+    except Exception as error:  # zenoh raises ZError with the parser's message
+        raise FleetError(f"{user_config}: invalid Zenoh config: {error}") from None
+
+
+def _set_unless_user_set(config, key: str, value) -> None:
+    """Insert our value where the user's file left the built-in default."""
+    import zenoh
+
+    if config.get_json(key) == zenoh.Config().get_json(key):
+        config.insert_json5(key, json.dumps(value))
+
+
+def router_config(listen: list[str], user_config: Path | None = None):
+    config = _base_config(user_config)
+    config.insert_json5("mode", '"router"')
+    if listen:
+        config.insert_json5("listen/endpoints", json.dumps(listen))
+    else:
+        _set_unless_user_set(config, "listen/endpoints", [DEFAULT_ENDPOINT])
+    _common(config, ROUTER_LEASE_MS)
+    return config
+
+
+def client_config(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None):
+    config = _base_config(user_config)
+    config.insert_json5("mode", '"client"')
+    if connect:
+        config.insert_json5("connect/endpoints", json.dumps(connect))
+    else:
+        _set_unless_user_set(config, "connect/endpoints", [default_endpoint()])
+    _common(config, lease_ms)
+    return config
+
+
+def _common(config, lease_ms: int | None) -> None:
+    _set_unless_user_set(config, "scouting/multicast/enabled", False)
+    _set_unless_user_set(config, "scouting/gossip/enabled", False)
+    # Control messages are small; shared-memory segments would only be left in /dev/shm by
+    # killed processes.
+    _set_unless_user_set(config, "transport/shared_memory/enabled", False)
+    if lease_ms is not None:
+        _set_unless_user_set(config, "transport/link/tx/lease", lease_ms)
+
+
+def open_client(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None):
+    """Open a client session or raise ControlError (router unreachable or credentials refused)."""
+    import zenoh
+
+    config = client_config(connect, user_config, lease_ms)
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        where = ", ".join(connect) or "the configured endpoint"
+        raise ControlError(
+            f"cannot reach the fleet router at {where}: {_first_line(error)} (is it running? "
+            f"if it requires credentials or TLS, give them with --zenoh-config or ${CONFIG_VARIABLE})"
+        ) from None
+
+
+def open_client_retrying(connect: list[str], user_config: Path | None, lease_ms: int | None, stop) -> object | None:
+    """For daemons: retry until the router answers (or `stop` is set, then None)."""
+    delay = 0.2
+    while not stop.is_set():
+        try:
+            return open_client(connect, user_config, lease_ms)
+        except ControlError:
+            stop.wait(delay)
+            delay = min(delay * 2, 2.0)
+    return None
+
+
+def open_router(listen: list[str], user_config: Path | None = None):
+    import zenoh
+
+    try:
+        return zenoh.open(router_config(listen, user_config))
+    except zenoh.ZError as error:
+        raise ControlError(f"cannot start the router on {', '.join(listen)}: {_first_line(error)}") from None
+
+
+def _first_line(error: Exception) -> str:
+    text = str(error)
+    # zenoh appends " at /root/.cargo/...rs:NNN." to its messages: not for users.
+    cut = text.find(" at /")
+    return (text[:cut] if cut > 0 else text).strip()
+
+
+def wait_for_router(connect: list[str], user_config: Path | None, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            open_client(connect, user_config).close()
+            return True
+        except ControlError:
+            time.sleep(0.1)
+    return False

@@ -1,0 +1,97 @@
+"""An agent's state directory: desired state per fleet (persisted before acknowledging) and units.
+
+    <state-dir>/
+      agent.json                      name of the agent owning the directory
+      desired/<fleet>.json            the accepted ApplyRequest plus live parameter overrides
+      units/<fleet>/<robot>/          bundle files as written for the runner, logs/ beside them
+
+Writes are atomic (temporary file, fsync, rename, fsync of the directory), so a crash leaves
+either the old or the new desired state, never half of one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from fleet.control.protocol import ApplyRequest
+
+
+class FleetState(BaseModel):
+    """What an agent holds for one fleet."""
+
+    request: ApplyRequest
+    # Parameters set live with `fleet param set`: robot -> node fqn -> parameter -> value.
+    overrides: dict[str, dict[str, dict[str, Any]]] = {}
+
+    @property
+    def fleet(self) -> str:
+        return self.request.fleet
+
+    @property
+    def generation(self) -> int:
+        return self.request.generation
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(data)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    directory = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(directory)
+    finally:
+        os.close(directory)
+
+
+class AgentStore:
+    def __init__(self, root: Path, agent: str):
+        self.root = root
+        self.agent = agent
+        self.desired_dir = root / "desired"
+        self.units_dir = root / "units"
+
+    def claim(self) -> None:
+        """Create the directory; refuse one that belongs to another agent name."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        marker = self.root / "agent.json"
+        if marker.exists():
+            owner = json.loads(marker.read_text()).get("name")
+            if owner != self.agent:
+                raise RuntimeError(f"state directory {self.root} belongs to agent {owner!r}, not {self.agent!r}")
+        else:
+            write_atomic(marker, json.dumps({"name": self.agent}).encode())
+
+    def load(self) -> tuple[dict[str, FleetState], list[str]]:
+        """Every fleet's desired state; unreadable files are reported, not fatal."""
+        fleets: dict[str, FleetState] = {}
+        problems: list[str] = []
+        if not self.desired_dir.is_dir():
+            return fleets, problems
+        for path in sorted(self.desired_dir.glob("*.json")):
+            try:
+                state = FleetState.model_validate_json(path.read_bytes())
+            except Exception as error:  # a corrupt file must not keep the agent down
+                problems.append(f"{path}: {error}")
+                continue
+            fleets[state.fleet] = state
+        return fleets, problems
+
+    def save(self, state: FleetState) -> None:
+        write_atomic(self.desired_dir / f"{state.fleet}.json", state.model_dump_json().encode())
+
+    def unit_dir(self, fleet: str, robot: str) -> Path:
+        return self.units_dir / fleet / robot

@@ -1,0 +1,217 @@
+"""A unit: one bundle (a robot or the world) written to disk and run by the embedded runner.
+
+The agent owns units; a unit owns one fleet.runtime LaunchSession.  Every process a unit starts
+carries UNIT_MARKER in its environment, so the agent (at start-up) and its reaper (when the
+agent dies, even by SIGKILL) find and stop them without trusting pid files: pids are reused,
+and respawned nodes get new ones.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from fleet.control.protocol import BundleMessage, NodeState, RobotState, check_file_name
+from fleet.control.state import write_atomic
+
+UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
+WORLD_STATUS_FILE = "world.status.json"  # written by the world next to world.yaml (templates/world.launch.yaml.j2)
+
+
+class Unit:
+    def __init__(self, fleet: str, bundle: BundleMessage, directory: Path, env: dict[str, str]):
+        self.fleet = fleet
+        self.bundle = bundle
+        self.directory = directory
+        self.env = env
+        self.generation = 0
+        self.session = None
+        self.error = ""
+        self.seen_running = False
+
+    @property
+    def name(self) -> str:
+        return self.bundle.name
+
+    @property
+    def log_dir(self) -> Path:
+        return self.directory / "logs"
+
+    # -- files ----------------------------------------------------------------------------------
+
+    def write_files(self, overrides: dict[str, dict[str, Any]], names: set[str] | None = None) -> None:
+        """Write the bundle's files (live parameter overrides merged into its params files)."""
+        self.directory.mkdir(parents=True, exist_ok=True)
+        files = with_overrides(self.bundle.files, overrides)
+        for name, text in files.items():
+            if names is not None and name not in names:
+                continue
+            path = self.directory / check_file_name(name)
+            if path.resolve().parent != self.directory.resolve():  # defence in depth
+                raise ValueError(f"file {name!r} escapes the unit directory")
+            write_atomic(path, text.encode())
+
+    def hot_update(self, bundle: BundleMessage, overrides: dict[str, dict[str, Any]]) -> None:
+        """Files such as world.yaml are re-read by the running process: rewrite them in place."""
+        self.bundle = bundle
+        self.write_files(overrides, names=set(bundle.hot_files))
+
+    # -- processes ------------------------------------------------------------------------------
+
+    def start(self, overrides: dict[str, dict[str, Any]]) -> None:
+        from fleet.runtime.supervisor import LaunchSession
+
+        self.error = ""
+        self.seen_running = False
+        try:
+            self.write_files(overrides)
+            self.log_dir.mkdir(parents=True, exist_ok=True)
+            self.session = LaunchSession(
+                self.directory / self.bundle.entry,
+                launch_args={},
+                env=self.env,
+                log_dir=self.log_dir,
+                isolation=self.bundle.options.get("isolation", "process"),
+                backend="auto",
+            )
+            self.session.start()
+        except Exception as error:  # a bad bundle fails this unit, never the agent
+            self.error = str(error) or type(error).__name__
+            self.session = None
+
+    def stop(self) -> None:
+        session, self.session = self.session, None
+        if session is not None:
+            session.stop()
+
+    # -- reporting ------------------------------------------------------------------------------
+
+    def node_states(self) -> list[NodeState]:
+        if self.session is None:
+            return []
+        states = []
+        for node in self.session.status():
+            states.append(
+                NodeState(
+                    name=node.name,
+                    fqn=getattr(node, "fqn", "") or "",
+                    state=str(node.state),
+                    pid=node.pid,
+                    restarts=node.restarts or 0,
+                    exit_code=node.exit_code,
+                    uptime=node.uptime,
+                )
+            )
+        return states
+
+    def state(self, overrides: dict[str, dict[str, Any]]) -> RobotState:
+        nodes = self.node_states()
+        running = sum(1 for node in nodes if node.state == "running")
+        total = len(nodes)
+        if self.error:
+            state = "failed"
+        elif self.session is None:
+            state = "stopped"
+        elif total and running == total:
+            state = "running"
+            self.seen_running = True
+        elif any(node.state in ("failed", "error") for node in nodes):
+            state = "failed"
+        else:
+            state = "degraded" if self.seen_running else "starting"
+        return RobotState(
+            name=self.name,
+            kind=self.bundle.kind,
+            state=state,
+            nodes=nodes,
+            running=running,
+            total=total,
+            restarts=sum(node.restarts for node in nodes),
+            generation=self.generation,
+            digest=self.bundle.digest,
+            hot_digest=self.bundle.hot_digest,
+            overrides=overrides,
+            error=self.error,
+        )
+
+    def world_status(self) -> dict[str, Any] | None:
+        """The world's status file, cut to what `fleet status` shows (no trails, no scan hits)."""
+        if self.bundle.kind != "world":
+            return None
+        try:
+            data = json.loads((self.directory / WORLD_STATUS_FILE).read_text())
+        except (OSError, ValueError):
+            return None
+        if not isinstance(data, dict):
+            return None
+        robots = data.get("robots") if isinstance(data.get("robots"), dict) else {}
+        return {
+            "sim_time": data.get("sim_time"),
+            "real_time_factor": data.get("real_time_factor"),
+            "robots": {
+                name: {"pose": entry.get("pose"), "battery": entry.get("battery")}
+                for name, entry in robots.items() if isinstance(entry, dict)
+            },
+        }
+
+    def node_fqn(self, node: str) -> str | None:
+        for state in self.node_states():
+            if state.name == node or state.fqn == node:
+                return state.fqn or None
+        return None
+
+    def node_names(self) -> list[str]:
+        return [state.name for state in self.node_states()]
+
+    def log_file(self, node: str) -> Path | None:
+        """The log file of the process hosting `node` (the runner keeps one per process)."""
+        if self.session is None:
+            return None
+        try:
+            return self.session.log_file(node)
+        except KeyError:
+            return None
+
+
+def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) -> dict[str, str]:
+    """Merge live overrides (node fqn -> parameter -> value) into the ROS params files."""
+    if not overrides:
+        return dict(files)
+    result = dict(files)
+    pending = {fqn: dict(values) for fqn, values in overrides.items() if values}
+    params_files = []
+    for name, text in files.items():
+        if not name.endswith((".yaml", ".yml")):
+            continue
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError:
+            continue
+        if not isinstance(data, dict) or not any(
+            isinstance(v, dict) and "ros__parameters" in v for v in data.values()
+        ):
+            continue
+        params_files.append(name)
+        changed = False
+        for fqn in list(pending):
+            section = data.get(fqn)
+            if isinstance(section, dict) and isinstance(section.get("ros__parameters"), dict):
+                section["ros__parameters"].update(pending.pop(fqn))
+                changed = True
+        if changed:
+            result[name] = _dump_params(data)
+    if pending and params_files:  # nodes without a section yet: add one to the first params file
+        data = yaml.safe_load(result[params_files[0]])
+        for fqn, values in pending.items():
+            data[fqn] = {"ros__parameters": values}
+        result[params_files[0]] = _dump_params(data)
+    return result
+
+
+def _dump_params(data: dict) -> str:
+    header = f"# rewritten by the fleet agent at {time.strftime('%Y-%m-%d %H:%M:%S')}: live overrides merged\n"
+    return header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)

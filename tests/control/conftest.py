@@ -1,0 +1,37 @@
+"""Fixtures of the control-plane tests (helpers in control_helpers.py)."""
+
+from __future__ import annotations
+
+import pytest
+from control_helpers import Cluster
+
+from fleet.testing.isolation import reserve_domain_id
+
+
+@pytest.fixture(scope="module")
+def domain_id():
+    with reserve_domain_id() as reservation:
+        yield reservation.domain_id
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory, domain_id):
+    """Router + agents hostA and hostB, shared by a module's tests (stopped at its end)."""
+    cluster = Cluster(tmp_path_factory.mktemp("cluster"), domain_id)
+    try:
+        cluster.start_router()
+        cluster.start_agent("hostA")
+        cluster.start_agent("hostB")
+        cluster.wait_agents_online("hostA", "hostB")
+        yield cluster
+    finally:
+        cluster.stop()
+
+
+@pytest.fixture
+def fresh_cluster(tmp_path, domain_id):
+    cluster = Cluster(tmp_path, domain_id)
+    try:
+        yield cluster
+    finally:
+        cluster.stop()

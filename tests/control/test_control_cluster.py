@@ -1,0 +1,274 @@
+"""A router and two agents as separate processes on loopback, deploying the tiny test fleet.
+
+The tests share one cluster (module fixture) and run in file order: each one states the fleet it
+needs by deploying it, so a failure in one does not hide the others.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import threading
+import time
+
+import psutil
+from control_helpers import robot, wait_until
+
+from fleet.control import protocol as p
+from fleet.control.deploy import new_generation, requests_for
+from fleet.expand import expand_fleet
+from fleet.spec import load_spec
+
+ROBOTS = {"robot1": "hostA", "robot2": "hostB", "robot3": "hostB"}
+
+
+def test_deploy_runs_every_robot_on_its_agent(cluster):
+    outcome = cluster.deploy(cluster.spec())
+    assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)
+    view = cluster.view("tiny")
+    assert {row.name: row.agent for row in view.robots} == ROBOTS
+    for row in view.robots:
+        assert row.state == "running" and row.running == row.total == 1
+        assert row.generation == outcome.generation
+        assert row.pids and all(psutil.pid_exists(pid) for pid in row.pids)
+    online = {agent.name: agent for agent in view.agents if agent.online}
+    assert set(online) >= {"hostA", "hostB"}
+    assert online["hostA"].cores >= 1 and "embedded" in online["hostA"].backends
+
+
+def test_redeploy_unchanged_restarts_nothing(cluster):
+    spec = cluster.spec()
+    cluster.deploy(spec)
+    before = {row.name: row.pids for row in cluster.view("tiny").robots}
+    outcome = cluster.deploy(spec)
+    assert outcome.ok and outcome.nothing_changed
+    after = cluster.view("tiny")
+    assert {row.name: row.pids for row in after.robots} == before
+    assert all(row.generation == outcome.generation for row in after.robots)
+
+
+def test_cli_redeploy_says_nothing_changed_and_status_exits_zero(cluster):
+    spec = cluster.spec()
+    cluster.deploy(spec)
+    done = cluster.cli("deploy", str(spec), "--connect", cluster.endpoint)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "nothing changed" in done.stdout
+    status = cluster.cli("status", "--json", "--connect", cluster.endpoint, "--fleet", "tiny")
+    assert status.returncode == 0, status.stdout + status.stderr
+    data = json.loads(status.stdout)
+    assert {row["name"] for row in data["robots"]} == set(ROBOTS)
+    assert data["all_running"] is True
+
+
+def test_changing_one_robot_restarts_only_it(cluster):
+    spec = cluster.spec()
+    cluster.deploy(spec)
+    before = {row.name: row.pids for row in cluster.view("tiny").robots}
+    diff = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--json", "--connect", cluster.endpoint)
+    assert diff.returncode == 0, diff.stderr
+    changes = {row["robot"]: row["change"] for row in json.loads(diff.stdout)}
+    assert changes == {"robot1": "unchanged", "robot2": "restart", "robot3": "unchanged"}
+
+    outcome = cluster.deploy(spec, sets=["robot2.sleeper.period=2.0"])
+    assert outcome.ok
+    assert outcome.replies["hostB"].changes.restart == ["robot2"]
+    assert outcome.replies["hostB"].changes.unchanged == ["robot3"]
+    assert outcome.replies["hostA"].changes.nothing
+    after = {row.name: row.pids for row in cluster.view("tiny").robots}
+    assert after["robot1"] == before["robot1"] and after["robot3"] == before["robot3"]
+    assert after["robot2"].isdisjoint(before["robot2"])
+    assert not any(psutil.pid_exists(pid) for pid in before["robot2"])
+    params = (cluster.state_dir("hostB") / "units" / "tiny" / "robot2" / "robot2.params.yaml").read_text()
+    assert "period: 2.0" in params
+
+
+def test_removing_a_robot_stops_it(cluster):
+    cluster.deploy(cluster.spec())
+    gone = robot(cluster.view("tiny"), "robot3").pids
+    spec = cluster.spec(robots=[{"name": "robot1"}, {"name": "robot2", "agent": "hostB"}])
+    outcome = cluster.deploy(spec)
+    assert outcome.ok
+    assert outcome.replies["hostB"].changes.stop == ["robot3"]
+    view = cluster.view("tiny")
+    assert {row.name for row in view.robots} == {"robot1", "robot2"}
+    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in gone), 10)
+    assert not (cluster.state_dir("hostB") / "units" / "tiny" / "robot3").exists()
+
+
+def test_robot_moved_to_another_agent(cluster):
+    cluster.deploy(cluster.spec())
+    spec = cluster.spec(robots=[{"name": "robot1"}, {"name": "robot2", "agent": "hostB"}, {"name": "robot3"}])
+    outcome = cluster.deploy(spec)
+    assert outcome.ok
+    assert {row.name: row.agent for row in cluster.view("tiny").robots}["robot3"] == "hostA"
+
+
+BAD_PAYLOADS = {
+    "malformed": b"{not json",
+    "truncated": None,  # filled in below from a real request
+    "oversized": b"{" + b" " * (p.MAX_MESSAGE_BYTES + 1) + b"}",
+    "wrong version": None,
+    "path escape": None,
+    "not an object": b"[1, 2, 3]",
+    "empty": b"",
+}
+
+
+def _bad_payloads(cluster) -> dict[str, bytes]:
+    expansion = expand_fleet(load_spec(cluster.spec()))
+    request = requests_for(expansion, new_generation(), set())[0]
+    good = json.loads(p.encode(request))
+    payloads = dict(BAD_PAYLOADS)
+    raw = json.dumps(good).encode()
+    payloads["truncated"] = raw[: len(raw) // 2]
+    payloads["wrong version"] = json.dumps({**good, "v": 2}).encode()
+    escape = json.loads(raw)
+    escape["bundles"][0]["files"]["../../evil.sh"] = "rm -rf /"
+    payloads["path escape"] = json.dumps(escape).encode()
+    return payloads
+
+
+def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
+    cluster.deploy(cluster.spec())
+    before = cluster.view("tiny")
+    with cluster.client() as client:
+        for label, payload in _bad_payloads(cluster).items():
+            replies = list(client.session.get(p.apply_key("tiny", "hostA"), payload=payload, timeout=10))
+            assert len(replies) == 1, label
+            assert replies[0].err is not None, label
+            error = json.loads(replies[0].err.payload.to_bytes())
+            assert error["kind"] == "error" and error["error"], label
+    after = cluster.view("tiny")
+    assert [(r.name, r.pids, r.generation, r.state) for r in after.robots] == [
+        (r.name, r.pids, r.generation, r.state) for r in before.robots
+    ]
+    assert not list(cluster.root.rglob("evil.sh"))
+    assert cluster.processes["agent-hostA"].poll() is None
+
+
+def test_older_generation_is_refused_and_told(cluster):
+    expansion = expand_fleet(load_spec(cluster.spec()), ["robot1.sleeper.period=3.0"])
+    older, newer = new_generation(), new_generation()
+    with cluster.client() as client:
+        # hostA sees the later deploy first: the earlier one arrives late and is refused.
+        late = {r.agent: r for r in requests_for(expansion, older, set())}
+        early = {r.agent: r for r in requests_for(expansion, newer, set())}
+        assert client.send_applies([early["hostA"]])["hostA"].accepted
+        refused = client.send_applies([late["hostA"]])["hostA"]
+        assert not refused.accepted
+        assert refused.current_generation == newer and "superseded" in refused.reason
+
+
+def test_concurrent_deploys_end_in_the_later_generation(cluster):
+    specs = [cluster.spec(), cluster.spec()]
+    outcomes = [None, None]
+    sets = [["robot2.sleeper.period=4.0"], ["robot2.sleeper.period=5.0"]]
+
+    def run(index):
+        outcomes[index] = cluster.deploy(specs[index], sets=sets[index], timeout=30)
+
+    threads = [threading.Thread(target=run, args=(index,)) for index in (0, 1)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    winner = max(outcomes, key=lambda outcome: outcome.generation)
+    loser = min(outcomes, key=lambda outcome: outcome.generation)
+    assert loser.superseded_by == winner.generation or not loser.ok
+    view = cluster.view("tiny")
+    assert {generation for (fleet, _), generation in view.generations.items() if fleet == "tiny"} == {
+        winner.generation
+    }
+    assert all(row.state == "running" for row in view.robots)
+    expected = "5.0" if winner is outcomes[1] else "4.0"
+    params = (cluster.state_dir("hostB") / "units" / "tiny" / "robot2" / "robot2.params.yaml").read_text()
+    assert f"period: {expected}" in params
+
+
+def test_logs_come_from_the_agent(cluster):
+    cluster.deploy(cluster.spec())
+    assert wait_until(lambda: "tick" in cluster.cli("logs", "robot1", "--connect", cluster.endpoint).stdout, 10)
+    done = cluster.cli("logs", "robot1", "sleeper", "--tail", "3", "--connect", cluster.endpoint)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert 1 <= len(lines) <= 3 and all(line.startswith(("tick", "sleeper started")) for line in lines)
+    missing = cluster.cli("logs", "nosuchrobot", "--connect", cluster.endpoint)
+    assert missing.returncode != 0 and "nosuchrobot" in missing.stderr
+
+
+def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
+    first = cluster.deploy(cluster.spec())
+    assert first.ok
+    hostb_pids = set().union(*(row.pids for row in cluster.view("tiny").robots if row.agent == "hostB"))
+    killed_at = time.monotonic()
+    cluster.kill("agent-hostB", signal.SIGKILL)
+
+    def offline():
+        view = cluster.view("tiny")
+        agent = next((a for a in view.agents if a.name == "hostB"), None)
+        return agent is not None and not agent.online and view
+
+    view = wait_until(offline, 3.0)
+    assert view, "hostB still online 3 s after SIGKILL"
+    assert time.monotonic() - killed_at < 3.0
+    assert {row.name: row.state for row in view.robots if row.agent == "hostB"} == {
+        "robot2": "offline", "robot3": "offline"
+    }
+    status = cluster.cli("status", "--connect", cluster.endpoint, "--fleet", "tiny")
+    assert status.returncode != 0 and "offline" in status.stdout
+    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in hostb_pids), 3.0)
+
+    # A deploy while hostB is away: hostA's robots are deployed, hostB's stay pending, exit non-zero.
+    spec = cluster.spec()
+    done = cluster.cli("deploy", str(spec), "--connect", cluster.endpoint, "--set", "robot1.sleeper.period=1.5",
+                       "--timeout", "10")
+    assert done.returncode != 0 and "unreachable" in done.stdout, done.stdout
+    view = cluster.view("tiny")
+    assert robot(view, "robot1").state == "running" and robot(view, "robot1").generation > first.generation
+    assert {robot(view, name).state for name in ("robot2", "robot3")} <= {"offline", "pending"}
+
+    cluster.start_agent("hostB")  # same state dir: restores without a new deploy
+
+    def restored():
+        view = cluster.view("tiny")
+        rows = [row for row in view.robots if row.agent == "hostB"]
+        return len(rows) == 2 and all(row.state == "running" for row in rows) and view
+
+    view = wait_until(restored, 20)
+    assert view, cluster.log("agent-hostB")
+    assert all(row.generation == first.generation for row in view.robots if row.agent == "hostB")
+
+
+def test_robots_keep_running_while_the_router_is_away(cluster):
+    cluster.deploy(cluster.spec())
+    pids = {row.name: row.pids for row in cluster.view("tiny").robots}
+    cluster.kill("router", signal.SIGTERM)
+    time.sleep(1.0)
+    assert all(psutil.pid_exists(pid) for pids_ in pids.values() for pid in pids_)
+    cluster.start_router()
+
+    def back():
+        view = cluster.view("tiny")
+        return {row.name: row.pids for row in view.robots if row.state == "running"} == pids
+
+    assert wait_until(back, 15), cluster.view("tiny").robots
+
+
+def test_logs_follow_streams_new_lines(cluster):
+    import subprocess
+    import sys
+
+    cluster.deploy(cluster.spec())
+    follower = subprocess.Popen([sys.executable, "-m", "fleet", "logs", "robot1", "-f", "--tail", "1",
+                                 "--connect", cluster.endpoint], env=cluster.env, stdout=subprocess.PIPE, text=True)
+    try:
+        ticks = set()
+        deadline = time.monotonic() + 20
+        while len(ticks) < 3 and time.monotonic() < deadline:
+            line = follower.stdout.readline()
+            if line.startswith("tick"):
+                ticks.add(line.strip())
+        assert len(ticks) >= 3
+    finally:
+        follower.terminate()
+        follower.wait(10)

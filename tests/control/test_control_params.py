@@ -1,0 +1,50 @@
+"""`fleet param get/set` through the agent to a real rclpy node's parameter services."""
+
+from __future__ import annotations
+
+import json
+import signal
+
+import pytest
+import yaml
+from control_helpers import robot, wait_until
+
+pytestmark = pytest.mark.integration
+
+
+def param(cluster, *args):
+    return cluster.cli("param", *args, "--connect", cluster.endpoint)
+
+
+def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fresh_cluster):
+    cluster = fresh_cluster
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.wait_agents_online("hostA")
+    spec = cluster.spec(defaults={"template": "one_controller", "agent": "hostA"}, robots=[{"name": "robot1"}])
+    outcome = cluster.deploy(spec, timeout=60)
+    assert outcome.ok, outcome.view and outcome.view.robots
+
+    got = param(cluster, "get", "robot1", "controller", "max_speed")
+    assert got.returncode == 0, got.stdout + got.stderr
+    assert json.loads(got.stdout) == 0.5
+
+    refused = param(cluster, "set", "robot1", "controller", "max_speed", "99")
+    assert refused.returncode != 0 and "refused" in refused.stderr, refused.stdout + refused.stderr
+    accepted = param(cluster, "set", "robot1", "controller", "max_speed", "1")  # an int for a double: coerced
+    assert accepted.returncode == 0, accepted.stdout + accepted.stderr
+    assert json.loads(param(cluster, "get", "robot1", "controller", "max_speed").stdout) == 1.0
+
+    desired = json.loads((cluster.state_dir("hostA") / "desired" / "tiny.json").read_text())
+    assert desired["overrides"]["robot1"]["/robot1/controller"]["max_speed"] == 1.0
+    params_file = cluster.state_dir("hostA") / "units" / "tiny" / "robot1" / "robot1.params.yaml"
+    assert yaml.safe_load(params_file.read_text())["/robot1/controller"]["ros__parameters"]["max_speed"] == 1.0
+    assert robot(cluster.view("tiny"), "robot1").overrides
+
+    unknown = param(cluster, "get", "robot1", "controller", "no_such_parameter")
+    assert unknown.returncode != 0 and "no parameter" in unknown.stderr
+
+    cluster.kill("agent-hostA", signal.SIGKILL)
+    cluster.start_agent("hostA")
+    assert wait_until(lambda: robot(cluster.view("tiny"), "robot1").state == "running", 30)
+    assert wait_until(lambda: param(cluster, "get", "robot1", "controller", "max_speed").stdout.strip() == "1.0", 30)

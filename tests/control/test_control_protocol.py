@@ -1,0 +1,208 @@
+"""Protocol validation, planning and agent-side file handling (no network, no processes)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+
+from fleet.control import protocol as p
+from fleet.control.agent import read_log
+from fleet.control.reconcile import plan_changes
+from fleet.control.state import AgentStore, FleetState
+from fleet.control.units import with_overrides
+
+DIGEST = "ab" * 32
+
+
+def bundle(name="robot1", digest=DIGEST, **changes) -> dict:
+    data = {
+        "name": name,
+        "kind": "robot",
+        "entry": f"{name}.launch.yaml",
+        "files": {f"{name}.launch.yaml": "launch: []\n", f"{name}.params.yaml": "{}\n"},
+        "options": {"isolation": "process"},
+        "hot_files": [],
+        "digest": digest,
+    }
+    data.update(changes)
+    return data
+
+
+def apply(**changes) -> dict:
+    data = {"v": 1, "kind": "apply", "fleet": "two_robots", "agent": "hostA", "generation": 5,
+            "domain_id": 42, "bundles": [bundle()]}  # fmt: skip
+    data.update(changes)
+    return data
+
+
+def decode(data) -> p.ApplyRequest:
+    raw = data if isinstance(data, bytes) else json.dumps(data).encode()
+    return p.decode(raw, p.ApplyRequest)
+
+
+def test_a_valid_apply_round_trips():
+    request = decode(apply())
+    assert request.bundles[0].name == "robot1"
+    assert decode(p.encode(request)) == request
+
+
+@pytest.mark.parametrize(
+    "payload, code",
+    [
+        (b"{\"v\": 1, \"kind\": \"apply\", \"fleet\": \"two", "malformed"),  # truncated
+        (b"\xff\xfe not utf-8", "malformed"),
+        (b"[]", "malformed"),
+        (b"", "malformed"),
+        (None, "malformed"),
+    ],
+)
+def test_malformed_and_truncated_messages_are_refused(payload, code):
+    with pytest.raises(p.ProtocolError) as caught:
+        p.decode(payload, p.ApplyRequest)
+    assert caught.value.code == code
+
+
+def test_oversized_message_is_refused_before_parsing():
+    with pytest.raises(p.ProtocolError) as caught:
+        p.decode(b" " * (p.MAX_MESSAGE_BYTES + 1), p.ApplyRequest)
+    assert caught.value.code == "too_large"
+
+
+def test_oversized_file_is_refused():
+    big = bundle(files={"robot1.launch.yaml": "x" * (p.MAX_FILE_BYTES + 1)})
+    with pytest.raises(p.ProtocolError, match="larger than"):
+        decode(apply(bundles=[big]))
+
+
+@pytest.mark.parametrize("version", [0, 2, "1", None])
+def test_wrong_version_is_refused(version):
+    with pytest.raises(p.ProtocolError) as caught:
+        decode(apply(v=version))
+    assert caught.value.code == "version"
+
+
+@pytest.mark.parametrize("name", ["../evil", "a/b", "/etc/passwd", ".hidden", "..", "a\\b", "x\0y", "", "a" * 200])
+def test_file_names_escaping_the_unit_directory_are_refused(name):
+    files = {"robot1.launch.yaml": "launch: []\n", name: "boom"}
+    with pytest.raises(p.ProtocolError):
+        decode(apply(bundles=[bundle(files=files)]))
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"fleet": "a/b"},
+        {"fleet": "*"},
+        {"agent": "host$"},
+        {"generation": -1},
+        {"domain_id": 233},
+        {"bundles": [bundle(), bundle()]},  # duplicate robot names
+        {"bundles": [bundle(name="../x")]},
+        {"bundles": [bundle(entry="missing.launch.yaml")]},
+        {"bundles": [bundle(hot_files=["world.yaml"])]},
+        {"bundles": [bundle(digest="not-hex")]},
+        {"unexpected": 1},
+        {"kind": "status"},
+    ],
+)
+def test_invalid_fields_are_refused(changes):
+    with pytest.raises(p.ProtocolError):
+        decode(apply(**changes))
+
+
+def test_error_replies_carry_code_and_reason():
+    raw = p.error_reply(p.ProtocolError("nope", "invalid"))
+    assert json.loads(raw) == {"v": 1, "kind": "error", "code": "invalid", "error": "nope"}
+    with pytest.raises(p.ProtocolError, match="nope"):
+        p.decode(raw, p.ApplyReply)
+
+
+def test_keys_live_under_the_fleet():
+    assert p.apply_key("f", "a") == "fleet/f/agent/a/apply"
+    assert p.status_query() == "fleet/*/status/**"
+    assert p.status_query("f") == "fleet/f/status/**"
+    assert p.fleet_of_key("fleet/f/agent/a/apply") == "f"
+    assert p.fleet_of_key("fleet/*/status/**") is None
+
+
+def test_param_request_needs_a_value_to_set():
+    with pytest.raises(ValueError):
+        p.ParamRequest(fleet="f", robot="r", node="n", name="x", op="set")
+    assert p.ParamRequest(fleet="f", robot="r", node="n", name="x", op="set", value=[1.0, 2.0]).value == [1.0, 2.0]
+
+
+# -- planning ---------------------------------------------------------------------------------
+
+
+def messages(*bundles_) -> dict[str, p.BundleMessage]:
+    return {b["name"]: p.BundleMessage.model_validate(b) for b in bundles_}
+
+
+def test_plan_changes_compares_digests():
+    current = messages(bundle("r1"), bundle("r2"), bundle("r3"))
+    desired = messages(bundle("r1"), bundle("r2", digest="cd" * 32), bundle("r4"))
+    changes = plan_changes(current, desired)
+    assert (changes.start, changes.stop, changes.restart, changes.unchanged) == (["r4"], ["r3"], ["r2"], ["r1"])
+    assert plan_changes(current, current).nothing
+
+
+def test_plan_changes_hot_updates_hot_files_and_retries_failed_units():
+    files = {"world.launch.yaml": "launch: []\n", "world.yaml": "a: 1\n"}
+    old = bundle("world", kind="world", entry="world.launch.yaml", files=files, hot_files=["world.yaml"])
+    new = dict(old, files={**files, "world.yaml": "a: 2\n"})
+    assert plan_changes(messages(old), messages(new)).hot_update == ["world"]
+    assert plan_changes(messages(old), messages(old), failed={"world"}).restart == ["world"]
+
+
+# -- agent files --------------------------------------------------------------------------------
+
+
+def test_overrides_are_merged_into_the_params_file():
+    files = {
+        "robot1.launch.yaml": "launch: []\n",
+        "robot1.params.yaml": yaml.safe_dump({"/robot1/controller": {"ros__parameters": {"max_speed": 0.5, "loop": True}}}),
+    }
+    merged = with_overrides(files, {"/robot1/controller": {"max_speed": 0.9}, "/robot1/battery": {"capacity": 7.0}})
+    data = yaml.safe_load(merged["robot1.params.yaml"])
+    assert data["/robot1/controller"]["ros__parameters"] == {"max_speed": 0.9, "loop": True}
+    assert data["/robot1/battery"]["ros__parameters"] == {"capacity": 7.0}
+    assert merged["robot1.launch.yaml"] == files["robot1.launch.yaml"]
+    assert with_overrides(files, {}) == files
+
+
+def test_desired_state_is_persisted_atomically_and_restored(tmp_path):
+    store = AgentStore(tmp_path / "state", "hostA")
+    store.claim()
+    state = FleetState(request=decode(apply()), overrides={"robot1": {"/robot1/x": {"a": 1}}})
+    store.save(state)
+    (store.desired_dir / "broken.json").write_text("{")
+    fleets, problems = store.load()
+    assert fleets == {"two_robots": state}
+    assert len(problems) == 1 and "broken.json" in problems[0]
+    assert not [path for path in store.desired_dir.iterdir() if path.name.startswith(".")]  # no temporaries
+    with pytest.raises(RuntimeError, match="belongs to agent"):
+        AgentStore(tmp_path / "state", "hostB").claim()
+
+
+def test_read_log_tails_then_follows_whole_lines(tmp_path):
+    path = tmp_path / "node.log"
+    path.write_text("".join(f"line {i}\n" for i in range(100)))
+    lines, offset = read_log(path, 3, None)
+    assert lines == ["line 97", "line 98", "line 99"]
+    with open(path, "a") as stream:
+        stream.write("line 100\nhalf")
+    lines, offset = read_log(path, 3, offset)
+    assert lines == ["line 100"]
+    with open(path, "a") as stream:
+        stream.write(" done\n")
+    assert read_log(path, 3, offset)[0] == ["half done"]
+    assert read_log(tmp_path / "missing.log", 3, None) == ([], 0)
+
+
+@pytest.mark.parametrize("name", ["hostA", "lab-pc.3", "_x", "a" * 63, "a" * 64, "-x", ".x", "a/b", "a*", "", "é"])
+def test_key_name_rule_matches_the_spec_rule(name):
+    from fleet.spec.names import key_name_problem
+
+    assert (p.key_name_problem(name) is None) == (key_name_problem(name) is None)

@@ -1,0 +1,62 @@
+"""Security by configuration: a router requiring user/password refuses clients without them."""
+
+from __future__ import annotations
+
+import pytest
+from control_helpers import wait_until
+
+from fleet.control import protocol as p
+from fleet.control.session import open_client
+from fleet.errors import ControlError
+
+
+def write(path, text):
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def credentials(tmp_path):
+    users = write(tmp_path / "users.txt", "agent:agent-secret\ndeployer:deploy-secret\n")
+    return {
+        "router": write(tmp_path / "router.json5", '{transport: {auth: {usrpwd: {user: "router", '
+                        f'password: "router-secret", dictionary_file: "{users}"}}}}}}}}\n'),
+        "agent": write(tmp_path / "agent.json5", '{transport: {auth: {usrpwd: {user: "agent", password: "agent-secret"}}}}\n'),
+        "deployer": write(tmp_path / "deployer.json5",
+                          '{transport: {auth: {usrpwd: {user: "deployer", password: "deploy-secret"}}}}\n'),
+        "wrong": write(tmp_path / "wrong.json5", '{transport: {auth: {usrpwd: {user: "deployer", password: "guess"}}}}\n'),
+    }
+
+
+def test_clients_without_credentials_cannot_query_or_deploy(fresh_cluster, credentials):
+    cluster = fresh_cluster
+    cluster.start_router(credentials["router"])
+    cluster.start_agent("hostA", credentials["agent"])
+    cluster.start_agent("hostB", credentials["agent"])
+
+    def agents_answer():
+        with cluster.client(credentials["deployer"]) as client:
+            statuses, _ = client.status()
+            return {s.agent.name for s in statuses} >= {"hostA", "hostB"}
+
+    assert wait_until(agents_answer, 15), cluster.log("agent-hostA")
+
+    for config in (None, credentials["wrong"]):
+        with pytest.raises(ControlError, match="cannot reach"):
+            open_client([cluster.endpoint], config)
+    spec = cluster.spec()
+    refused = cluster.cli("deploy", str(spec), "--connect", cluster.endpoint)
+    assert refused.returncode != 0 and "cannot reach the fleet router" in refused.stderr
+    refused = cluster.cli("status", "--connect", cluster.endpoint)
+    assert refused.returncode != 0
+
+    allowed = cluster.cli("deploy", str(spec), "--connect", cluster.endpoint,
+                          "--zenoh-config", str(credentials["deployer"]))
+    assert allowed.returncode == 0, allowed.stdout + allowed.stderr
+    env = dict(cluster.env, FLEET_ZENOH_CONFIG=str(credentials["deployer"]))
+    status = cluster.cli("status", "--connect", cluster.endpoint, "--json", env=env)
+    assert status.returncode == 0, status.stdout + status.stderr
+    with cluster.client(credentials["deployer"]) as client:
+        statuses, _ = client.status("tiny")
+        assert sorted(s.agent.name for s in statuses if s.fleet == "tiny") == ["hostA", "hostB"]
+        assert p.status_query("tiny") == "fleet/tiny/status/**"

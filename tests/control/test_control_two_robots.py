@@ -1,0 +1,116 @@
+"""fleets/two_robots.yaml over the control plane with real nodes: one robot per agent."""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+
+import psutil
+import pytest
+import yaml
+from control_helpers import REPO, Cluster, robot, wait_until
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(scope="module")
+def two_robots(tmp_path_factory, domain_id):
+    cluster = Cluster(tmp_path_factory.mktemp("two_robots"), domain_id)
+    data = yaml.safe_load((REPO / "fleets" / "two_robots.yaml").read_text())
+    data["ros"]["domain_id"] = domain_id
+    data["agents"] = {"hostA": {}, "hostB": {}}
+    data["defaults"]["agent"] = "hostA"
+    data["world"]["agent"] = "hostA"
+    next(r for r in data["robots"] if r["name"] == "robot2")["agent"] = "hostB"
+    spec = cluster.root / "two_robots.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    try:
+        cluster.start_router()
+        cluster.start_agent("hostA")
+        cluster.start_agent("hostB")
+        cluster.wait_agents_online("hostA", "hostB")
+        cluster.spec_file = spec
+        yield cluster
+    finally:
+        cluster.stop()
+
+
+def pids(view) -> dict[str, set[int]]:
+    return {row.name: row.pids for row in view.robots}
+
+
+def test_deploy_status_and_noop_redeploy(two_robots):
+    cluster = two_robots
+    done = cluster.cli("deploy", str(cluster.spec_file), "--connect", cluster.endpoint, "--timeout", "90", timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr + cluster.log("agent-hostA")
+    view = cluster.view("two_robots")
+    assert {row.name: row.agent for row in view.robots} == {"world": "hostA", "robot1": "hostA", "robot2": "hostB"}
+    for name in ("robot1", "robot2"):
+        row = robot(view, name)
+        assert row.state == "running" and row.running == row.total >= 2
+        assert {node["name"] for node in row.nodes} >= {"controller", "battery"}
+
+    # The world's status file reaches `fleet status`: poses (and battery) per robot.
+    def posed():
+        view = cluster.view("two_robots")
+        return all(robot(view, name).pose for name in ("robot1", "robot2")) and view
+
+    assert wait_until(posed, 30), cluster.view("two_robots").robots
+    before = pids(cluster.view("two_robots"))
+    again = cluster.cli("deploy", str(cluster.spec_file), "--connect", cluster.endpoint)
+    assert again.returncode == 0 and "nothing changed" in again.stdout, again.stdout
+    assert pids(cluster.view("two_robots")) == before
+
+
+def test_set_on_robot2_restarts_only_robot2_and_reaches_the_node(two_robots):
+    cluster = two_robots
+    before = pids(cluster.view("two_robots"))
+    done = cluster.cli("deploy", str(cluster.spec_file), "--set", "robot2.controller.max_speed=0.9",
+                       "--connect", cluster.endpoint, "--timeout", "90", timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    after = pids(cluster.view("two_robots"))
+    assert after["robot1"] == before["robot1"] and after["world"] == before["world"]
+    assert after["robot2"].isdisjoint(before["robot2"])
+    got = cluster.cli("param", "get", "robot2", "controller", "max_speed", "--connect", cluster.endpoint)
+    assert got.returncode == 0, got.stderr
+    assert json.loads(got.stdout) == 0.9
+
+
+def test_live_parameter_set_is_checked_and_kept(two_robots):
+    cluster = two_robots
+    refused = cluster.cli("param", "set", "robot1", "controller", "max_speed", "99", "--connect", cluster.endpoint)
+    assert refused.returncode != 0 and "refused" in refused.stderr, refused.stderr
+    accepted = cluster.cli("param", "set", "robot1", "controller", "max_speed", "0.7", "--connect", cluster.endpoint)
+    assert accepted.returncode == 0, accepted.stderr
+    got = cluster.cli("param", "get", "robot1", "controller", "max_speed", "--connect", cluster.endpoint)
+    assert json.loads(got.stdout) == 0.7
+    desired = json.loads((cluster.state_dir("hostA") / "desired" / "two_robots.json").read_text())
+    assert desired["overrides"]["robot1"]["/robot1/controller"]["max_speed"] == 0.7
+    params = (cluster.state_dir("hostA") / "units" / "two_robots" / "robot1" / "robot1.params.yaml").read_text()
+    assert yaml.safe_load(params)["/robot1/controller"]["ros__parameters"]["max_speed"] == 0.7
+    diff = cluster.cli("diff", str(cluster.spec_file), "--set", "robot2.controller.max_speed=0.9", "--json",
+                       "--connect", cluster.endpoint)
+    row = next(r for r in json.loads(diff.stdout) if r["robot"] == "robot1")
+    assert row["change"] == "unchanged" and "max_speed=0.7" in row["detail"]
+
+
+def test_killed_agent_goes_offline_and_comes_back(two_robots):
+    cluster = two_robots
+    robot2_pids = robot(cluster.view("two_robots"), "robot2").pids
+    cluster.kill("agent-hostB", signal.SIGKILL)
+    started = time.monotonic()
+
+    def offline():
+        view = cluster.view("two_robots")
+        return robot(view, "robot2").state == "offline" and view
+
+    assert wait_until(offline, 3.0) and time.monotonic() - started < 3.0
+    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in robot2_pids), 3.0)
+    cluster.start_agent("hostB")
+
+    def restored():
+        row = robot(cluster.view("two_robots"), "robot2")
+        return row.state == "running" and row.running == row.total
+
+    assert wait_until(restored, 60), cluster.log("agent-hostB")
