@@ -328,12 +328,10 @@ def diff(
     if json:
         print_json([asdict(row) for row in rows])
         return
-    from rich.table import Table
+    from fleet.cli.output import table as make_table
 
     colours = {"start": "green", "stop": "red", "restart": "yellow", "move": "yellow", "hot-update": "cyan"}
-    table = Table(title=f"fleet {expansion.fleet}: deploy would")
-    for column in ("robot", "agent", "change", "detail"):
-        table.add_column(column)
+    table = make_table("robot", "agent", "change", "detail", title=f"fleet {expansion.fleet}: deploy would")
     for row in rows:
         colour = colours.get(row.change)
         change = f"[{colour}]{row.change}[/{colour}]" if colour else row.change
@@ -386,31 +384,31 @@ def _print_view(view, out, agents: bool = True) -> None:
 
 
 def _view_tables(view, agents: bool = True):
-    from rich.table import Table
     from rich.text import Text
+
+    from fleet.cli.output import table as make_table
 
     tables = []
     if agents:
-        table = Table(title="agents")
-        for column in ("agent", "state", "last seen", "host", "cores", "backends", "fleets"):
-            table.add_column(column)
+        table = make_table("agent", "state", "last seen", "host", "cores", "backends", "fleets", title="Agents")
         for row in view.agents:
             state = "[green]online[/green]" if row.online else "[red]offline[/red]"
             seen = "now" if row.online else (_ago(row.last_seen) if row.last_seen is not None else "never")
             table.add_row(row.name, state, seen, row.hostname, str(row.cores or ""), ", ".join(row.backends),
                           ", ".join(row.fleets))  # fmt: skip
         tables.append(table)
-    table = Table(title="robots")
-    for column in ("fleet", "robot", "agent", "state", "nodes", "restarts", "deployed", "pose (x, y, yaw)", "battery"):
-        table.add_column(column)
+    several_fleets = len({row.fleet for row in view.robots}) > 1
+    columns = ["robot", "agent", "state", "nodes", "restarts", "deployed", "pose x,y,yaw", "battery"]
+    table = make_table(*(["fleet"] + columns if several_fleets else columns), title="Robots")
     colours = {"running": "green", "starting": "yellow", "pending": "yellow", "degraded": "yellow"}
     for row in view.robots:
         colour = colours.get(row.state, "red")
-        pose = f"{row.pose.get('x', 0):.2f}, {row.pose.get('y', 0):.2f}, {row.pose.get('yaw', 0):.2f}" if row.pose else ""
+        pose = f"{row.pose.get('x', 0):.2f},{row.pose.get('y', 0):.2f},{row.pose.get('yaw', 0):.2f}" if row.pose else ""
         battery = f"{row.battery * 100:.0f}%" if row.battery is not None else ""
         state = f"[{colour}]{row.state}[/{colour}]" + (" (live overrides)" if row.overrides else "")
-        table.add_row(row.fleet, row.name, row.agent, state, f"{row.running}/{row.total}", str(row.restarts),
-                      _generation_time(row.generation), pose, battery)  # fmt: skip
+        cells = [row.name, row.agent, state, f"{row.running}/{row.total}", str(row.restarts),
+                 _generation_time(row.generation), pose, battery]
+        table.add_row(*([row.fleet] + cells if several_fleets else cells))
     tables.append(table)
     for row in view.robots:
         if row.error:

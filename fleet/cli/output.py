@@ -22,5 +22,21 @@ def print_json(data: Any) -> None:
 def console(stderr: bool = False):
     from rich.console import Console
 
+    stream = sys.stderr if stderr else sys.stdout
+    # Piped output (scripts, CI logs) has no terminal width: rather than wrap tables at rich's
+    # default 80 columns, let them be as wide as their content, like kubectl does.
+    width = None if stream.isatty() else 200
     # soft_wrap: long messages (paths) stay on one line instead of being broken mid-word.
-    return Console(stderr=stderr, highlight=False, soft_wrap=True)
+    return Console(stderr=stderr, highlight=False, soft_wrap=True, width=width)
+
+
+def table(*columns: str, title: str | None = None):
+    """A kubectl-like table: upper-case headers, no borders, so it fits 80 columns."""
+    from rich import box
+    from rich.table import Table
+
+    result = Table(title=title, title_justify="left", title_style="bold", box=box.SIMPLE_HEAD,
+                   pad_edge=False, show_edge=False)
+    for column in columns:
+        result.add_column(column.upper(), overflow="fold")
+    return result

@@ -38,26 +38,22 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
 
 
 def print_plan(expansion: Expansion, console) -> None:
-    from rich.table import Table
+    from fleet.cli.output import table
 
     data = plan_data(expansion)
     console.print(f"[bold]fleet {data['fleet']}[/bold]  ROS_DOMAIN_ID={data['domain_id']}  "
                   f"use_sim_time={str(data['use_sim_time']).lower()}  "
                   + (f"world on agent {data['world']['agent']} ({data['world']['obstacles']} obstacles)"
                      if data["world"] else "no world"))
-    robots = Table(title="Robots", title_justify="left")
-    for column in ("ROBOT", "AGENT", "NAMESPACE", "TEMPLATE", "NODES", "MODEL", "POSE (x, y, yaw)"):
-        robots.add_column(column)
+    robots = table("robot", "agent", "namespace", "template", "nodes", "model", "pose x,y,yaw", title="Robots")
     for robot in data["robots"]:
         nodes = ", ".join(node["name"] + ("?" if node["conditional"] else "") for node in robot["nodes"])
         pose = robot["pose"]
         robots.add_row(robot["name"], robot["agent"], robot["namespace"], robot["template"], nodes,
-                       robot["model"]["type"], f"{pose['x']:.2f}, {pose['y']:.2f}, {pose['yaw']:.2f}")
+                       robot["model"]["type"], f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}")
     console.print(robots)
     console.print("[dim]? = started only when its launch condition holds (e.g. enable_safety)[/dim]")
-    parameters = Table(title="Effective parameters", title_justify="left")
-    for column in ("ROBOT", "NODE", "PARAMETER", "VALUE", "FROM"):
-        parameters.add_column(column)
+    parameters = table("robot", "node", "parameter", "value", "from", title="Effective parameters")
     for robot in data["robots"]:
         for node, values in robot["parameters"].items():
             for name, entry in values.items():
@@ -89,16 +85,14 @@ def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:
 
 
 def print_explain(data: dict[str, Any], console) -> None:
-    from rich.table import Table
+    from fleet.cli.output import table as make_table
 
-    table = Table(title=f"{data['parameter']} = {format_value(data['value'])}", title_justify="left")
-    for column in ("LAYER", "VALUE", "SOURCE", ""):
-        table.add_column(column)
+    layers = make_table("layer", "value", "source", "", title=f"{data['parameter']} = {format_value(data['value'])}")
     for layer in data["layers"]:
-        table.add_row(layer["layer"], format_value(layer["value"]), layer["source"],
+        layers.add_row(layer["layer"], format_value(layer["value"]), layer["source"],
                       "effective" if layer["effective"] else "overridden",
                       style="bold" if layer["effective"] else "dim")
-    console.print(table)
+    console.print(layers)
 
 
 def format_value(value: Any) -> str:

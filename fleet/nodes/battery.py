@@ -126,7 +126,8 @@ class BatteryNode(FleetNode):
 
     def diagnose(self) -> tuple[int, str, dict[str, Any]]:
         health = self.health()
-        level, message = {"good": (OK, "ok"), "low": (WARN, "low"), "dead": (ERROR, "dead")}[health]
+        level, word = {"good": (OK, "ok"), "low": (WARN, "low"), "dead": (ERROR, "dead")}[health]
+        message = f"{word}: {self.model.fraction * 100:.0f}% left"
         if self.sim_time_waiting():
             level, message = WARN, "waiting for /clock (use_sim_time)"
         draw = self.model.draw_w

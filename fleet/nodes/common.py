@@ -126,6 +126,10 @@ class FleetNode(Node):
             self.publish_diagnostics,
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
+        self._logged_state: str | None = None
+        self.get_logger().info(
+            "started: " + ", ".join(f"{k}={format_value(v)}" for k, v in self.params.items())
+        )
 
     # -- parameters -----------------------------------------------------------------------
 
@@ -180,6 +184,7 @@ class FleetNode(Node):
         for param in parameters:
             if param.name in self._specs:
                 self.params[param.name] = param.value
+                self.get_logger().info(f"parameter {param.name} set to {format_value(param.value)}")
         if changed:
             self.on_parameters_changed(changed)
 
@@ -191,6 +196,7 @@ class FleetNode(Node):
 
     def publish_diagnostics(self) -> None:
         level, message, values = self.diagnose()
+        self._log_state_change(level, message)
         status = DiagnosticStatus(
             level=level,
             name=self.get_fully_qualified_name(),
@@ -201,6 +207,21 @@ class FleetNode(Node):
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
         self._diagnostics_pub.publish(array)
+
+    def _log_state_change(self, level: int, message: str) -> None:
+        # The diagnostics message is the node's state in words ("driving", "blocked: obstacle at
+        # 0.31 m"); a change of it is what a person reading `fleet logs` wants to see.
+        state = message.split(":")[0]
+        if state == self._logged_state:
+            return
+        self._logged_state = state
+        # rclpy refuses one call site logging at several severities: one call per level.
+        if level == OK:
+            self.get_logger().info(message)
+        elif level == WARN:
+            self.get_logger().warning(message)
+        else:
+            self.get_logger().error(message)
 
     def sim_time_waiting(self) -> bool:
         """True while use_sim_time is on and no /clock has arrived (ROS time still zero)."""

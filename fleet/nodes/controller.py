@@ -103,6 +103,8 @@ class ControllerNode(FleetNode):
         if key == self._published_goal:
             return
         self._published_goal = key
+        goal_x, goal_y = self.follower.goal
+        self.get_logger().info(f"heading to waypoint {self.follower.index} ({goal_x:.2f}, {goal_y:.2f})")
         msg = PointStamped()
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.frame_id

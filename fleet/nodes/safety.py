@@ -116,7 +116,7 @@ class SafetyNode(FleetNode):
         level = {"clear": OK, "blocked": WARN, "no scan": ERROR}[verdict]
         message = {
             "clear": "clear",
-            "blocked": "forward motion blocked",
+            "blocked": f"forward motion blocked: obstacle at {self.nearest:.2f} m",
             "no scan": "no recent scan",
         }[verdict]
         if self.sim_time_waiting():
