@@ -190,12 +190,18 @@ def deploy(
     connect: Optional[str] = ConnectOption,
     zenoh_config: Optional[Path] = ZenohConfigOption,
     json: bool = typer.Option(False, "--json", help="Print the outcome as JSON."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Only show what would be deployed; send nothing."),
 ) -> None:
     """Send each agent its robots' launch descriptions, wait until they run, show the status."""
     from fleet.cli.output import console, print_json
     from fleet.control import deploy as deploying
 
     expansion = _expand(spec, set_)
+    if dry_run:
+        from fleet.cli.plan_view import plan_data, print_plan
+
+        print_json(plan_data(expansion)) if json else print_plan(expansion, console())
+        return
     client = _connect_or_start_daemon(expansion, connect, zenoh_config)
     with client:
         progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())

@@ -239,3 +239,16 @@ def test_shape_cache_matches_full_render(tmp_path):
         assert _NAME not in cached.python and _NAME not in cached.text
         results[name] = cached
     assert [n.fqn for n in results["b"].outline.nodes] == ["/site/b/controller", "/site/b/battery", "/site/b/safety"]
+
+
+def test_deploy_dry_run_sends_nothing(tmp_path, capsys, monkeypatch):
+    """--dry-run prints the plan and never connects (no router is running for this test)."""
+    import json
+
+    monkeypatch.setenv("FLEET_CONNECT", "tcp/127.0.0.1:9")  # would fail at once if it tried
+    monkeypatch.setenv("FLEET_STATE_DIR", str(tmp_path / "state"))
+    assert run_fleet(["deploy", str(FLEETS / "two_robots.yaml"), "--dry-run", "--json",
+                      "--set", "robot1.controller.max_speed=0.7"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["robots"][0]["parameters"]["controller"]["max_speed"] == {"value": 0.7, "from": "--set"}
+    assert not (tmp_path / "state").exists()
