@@ -356,7 +356,8 @@ def status(
     connect: Optional[str] = ConnectOption,
     zenoh_config: Optional[Path] = ZenohConfigOption,
 ) -> None:
-    """Agents (online/offline) and robots (state, nodes, restarts, pose, battery) of every fleet."""
+    """Agents (online/offline), robots (state, nodes, restarts, pose, battery) and worlds
+    (sim time, real-time factor, contacts) of every fleet."""
     from fleet.cli.output import console, print_json
     from fleet.control.view import build_view
 
@@ -416,10 +417,30 @@ def _view_tables(view, agents: bool = True):
                  _generation_time(row.generation), pose, battery]
         table.add_row(*([row.fleet] + cells if several_fleets else cells))
     tables.append(table)
+    for world in view.worlds:
+        tables.append(_world_line(world))
     for row in view.robots:
         if row.error:
             tables.append(Text(f"{row.fleet}/{row.name} on {row.agent}: {row.error}", style="red"))
     return tables
+
+
+def _world_line(world):
+    """One line per world: sim time, real-time factor, contacts (with the latest), problems."""
+    from rich.text import Text
+
+    line = Text(f"world {world.fleet} on {world.agent}: t {world.sim_time:.1f} s, "
+                f"RTF {world.real_time_factor:.2f}, {world.robots} robots, ")  # fmt: skip
+    count = world.contacts.get("count", 0)
+    contacts = f"{count} contact" + ("" if count == 1 else "s")
+    last = world.contacts.get("last") or []
+    if last:
+        contacts += f" (last {last[-1]['a']}-{last[-1]['b']} at {last[-1]['sim_time']:.1f} s)"
+    line.append(contacts, style="yellow" if count else None)
+    if world.errors:
+        more = f" (+{len(world.errors) - 1} more)" if len(world.errors) > 1 else ""
+        line.append(f"; error: {world.errors[0]['message']}{more}", style="red")
+    return line
 
 
 def _ago(seconds: float) -> str:
@@ -509,7 +530,10 @@ def _param(robot: str, node: str, name: str, op: str, value, fleet, connect, zen
             request = p.ParamRequest(fleet=fleet_name, robot=robot, node=node, name=name, op=op, value=value)
         except Exception as error:
             raise FleetError(f"invalid parameter request: {error}") from None
-        return client.request(p.param_key(fleet_name, agent_name), request, p.ParamReply, f"agent {agent_name}")
+        from fleet.control.agent import PARAM_TIMEOUT
+
+        return client.request(p.param_key(fleet_name, agent_name), request, p.ParamReply, f"agent {agent_name}",
+                              timeout=PARAM_TIMEOUT + 5)  # the agent's own wait, plus the round trip
 
 
 def param_get(

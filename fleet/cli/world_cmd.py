@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 
+from fleet.cli.control_cmd import ConnectOption, ZenohConfigOption
 from fleet.errors import FleetError, Location
 
 
@@ -30,22 +31,63 @@ def register(app: typer.Typer) -> None:
 
     @app.command("snapshot")
     def snapshot(
-        status_file: Path = typer.Option(..., "--status-file", help="Status file written by `fleet world --status-file`."),
-        config: Optional[Path] = typer.Option(None, "--config", help="world.yaml to take the obstacles from (default: those in the status file)."),
         output: Path = typer.Option(Path("world.png"), "-o", "--output", help="PNG to write."),
+        fleet: Optional[str] = typer.Option(None, "--fleet", "-f", help="Fleet whose world to draw (needed when several fleets run one)."),
+        connect: Optional[str] = ConnectOption,
+        zenoh_config: Optional[Path] = ZenohConfigOption,
+        status_file: Optional[Path] = typer.Option(None, "--status-file", help="Draw from this local status file (written by `fleet world --status-file`) instead of asking the control plane."),
+        config: Optional[Path] = typer.Option(None, "--config", help="world.yaml to take the obstacles from (default: those the world reports)."),
     ) -> None:
-        """Draw a top-down picture of the world: obstacles, robots, trails and lidar hits."""
-        from fleet.world.snapshot import draw_snapshot
-        from fleet.world.status import obstacle_dict, read_status
+        """Draw a top-down picture of the world now: obstacles, robots, trails and lidar hits.
 
-        status = read_status(status_file)
-        if status is None:
-            raise FleetError("no readable world status here (is `fleet world --status-file` running?)",
-                             Location(status_file))
+        By default the world's state comes over the control plane from the agent running it.
+        """
+        if output.suffix.lower() != ".png":
+            raise FleetError("the picture is a PNG: give -o a name ending in .png", Location(output))
+        if not output.parent.is_dir():
+            raise FleetError("no such directory to write the picture in", Location(output))
+        if status_file is not None and (fleet or connect or zenoh_config):
+            raise FleetError("--status-file reads a local file: it does not go with --fleet, --connect or --zenoh-config")
+        if status_file is not None:
+            document = _local_world(status_file)
+        else:
+            document = _remote_world(fleet, connect, zenoh_config)
+        from fleet.world.snapshot import draw_snapshot
+        from fleet.world.status import obstacle_dict
+
         obstacles = None
         if config is not None:
             from fleet.world.description import load_world
 
             obstacles = [obstacle_dict(o) for o in load_world(config).obstacles]
-        draw_snapshot(status, output, obstacles=obstacles)
+        draw_snapshot(document.model_dump(exclude_none=True), output, obstacles=obstacles)
         typer.echo(f"wrote {output}")
+
+
+def _local_world(status_file: Path):
+    from fleet.control.protocol import world_document
+    from fleet.world.status import read_status
+
+    data = read_status(status_file)
+    if data is None:
+        raise FleetError("no readable world status here (is `fleet world --status-file` running?)",
+                         Location(status_file))  # fmt: skip
+    try:
+        return world_document(data)
+    except ValueError as error:
+        raise FleetError(f"not a world status file: {error}", Location(status_file)) from None
+
+
+def _remote_world(fleet: Optional[str], connect: Optional[str], zenoh_config: Optional[Path]):
+    """One status query finds the agent running the world; that agent sends the whole state."""
+    import time
+
+    from fleet.cli.control_cmd import _client
+    from fleet.control.protocol import key_name_problem
+    from fleet.control.view import build_view, locate_world
+
+    if fleet is not None and key_name_problem(fleet):
+        raise FleetError(f"--fleet: {key_name_problem(fleet)}")
+    with _client(connect, zenoh_config) as client:
+        fleet_name, agent = locate_world(build_view(*client.status(fleet), time.time()), fleet)
+        return client.world(fleet_name, agent).world

@@ -36,7 +36,7 @@ from fleet.control.units import UNIT_MARKER, Unit
 
 log = logging.getLogger("fleet.agent")
 
-PARAM_TIMEOUT = 15.0
+PARAM_TIMEOUT = 30.0  # a loaded host needs seconds for rclpy start-up and discovery
 
 
 class Agent:
@@ -119,6 +119,7 @@ class Agent:
             p.logs_key("*", self.name): self._handle_logs,
             p.param_key("*", self.name): self._handle_param,  # on the slow pool, see _enqueue
             p.agent_status_key("*", self.name): self._handle_status,
+            p.world_key("*", self.name): self._handle_world,
         }
         self._queryables = []
         for key, handler in handlers.items():
@@ -330,7 +331,7 @@ class Agent:
         seen = set()
         for name, unit in units:
             reply.robots.append(unit.state(overrides.get(name, {})))
-            world = unit.world_status()
+            world = unit.world_summary()
             if world is not None:
                 reply.world = world
             seen.add(name)
@@ -341,6 +342,26 @@ class Agent:
                                  hot_digest=bundle.hot_digest)  # fmt: skip
                 )
         return reply
+
+    # -- world ----------------------------------------------------------------------------------
+
+    def _handle_world(self, query):
+        """The world's whole status file (trails, lidar hits, obstacles), for `fleet snapshot`."""
+        request = p.decode(_payload(query), p.WorldRequest)
+        with self._lock:
+            worlds = [u for (f, _), u in self._units.items() if f == request.fleet and u.bundle.kind == "world"]
+        if not worlds:
+            raise p.ProtocolError(f"agent {self.name} runs no world of fleet {request.fleet!r}", "not_found")
+        data = worlds[0].world_file()
+        if data is None:
+            raise p.ProtocolError(f"the world of fleet {request.fleet!r} has not reported its state yet "
+                                  f"(starting, or not running: see `fleet logs world`)", "not_found")  # fmt: skip
+        try:
+            document = p.world_document(data)
+        except ValueError as error:
+            raise p.ProtocolError(f"the world's status file is invalid: {error}", "agent_error") from None
+        reply = p.WorldReply(fleet=request.fleet, agent=self.name, world=document)
+        yield p.world_key(request.fleet, self.name), p.encode(reply)
 
     # -- logs -----------------------------------------------------------------------------------
 

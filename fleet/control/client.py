@@ -81,6 +81,11 @@ class ControlClient:
         handler = self.session.get(key, payload=p.encode(message), timeout=timeout)
         return _one_reply(handler, model, what)
 
+    def world(self, fleet: str, agent: str, timeout: float = STATUS_TIMEOUT) -> p.WorldReply:
+        """The full world state (trails, lidar hits, obstacles) from the agent running it."""
+        return self.request(p.world_key(fleet, agent), p.WorldRequest(fleet=fleet), p.WorldReply,
+                            f"agent {agent}", timeout=timeout)  # fmt: skip
+
     def put_plan(self, plan: p.PlanRecord) -> None:
         self.session.put(p.plan_key(plan.fleet), p.encode(plan))
 

@@ -163,7 +163,8 @@ def deploy(
 
 def _only_fleet(view: FleetView, expansion) -> FleetView:
     robots = [row for row in view.robots if row.fleet == expansion.fleet]
-    return FleetView(view.agents, robots, view.generations, view.domain_ids)
+    worlds = [world for world in view.worlds if world.fleet == expansion.fleet]
+    return FleetView(view.agents, robots, view.generations, view.domain_ids, worlds)
 
 
 def _settled(view: FleetView, wanted: set[str], generation: int) -> bool:

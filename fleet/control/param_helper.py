@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import sys
 
-SERVICE_TIMEOUT = 8.0
+SERVICE_TIMEOUT = 20.0
 
 
 def _reply(ok: bool, value=None, reason: str = "") -> None:

@@ -10,6 +10,7 @@ Key space (every key lives under the fleet's name, so several fleets share one r
     fleet/<fleet>/agent/<agent>/apply      queryable  ApplyRequest -> ApplyReply
     fleet/<fleet>/agent/<agent>/logs       queryable  LogsRequest  -> LogsReply
     fleet/<fleet>/agent/<agent>/param      queryable  ParamRequest -> ParamReply
+    fleet/<fleet>/agent/<agent>/world      queryable  WorldRequest -> WorldReply (the agent running the world)
     fleet/<fleet>/status/agent/<agent>     queryable  (no payload) -> StatusReply
     fleet/<fleet>/status/registry          queryable  (router)     -> RegistryReply
     fleet/<fleet>/plan                     put        PlanRecord (deploy -> router registry)
@@ -67,6 +68,10 @@ def logs_key(fleet: str, agent: str) -> str:
 
 def param_key(fleet: str, agent: str) -> str:
     return f"fleet/{fleet}/agent/{agent}/param"
+
+
+def world_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/agent/{agent}/world"
 
 
 def agent_status_key(fleet: str, agent: str) -> str:
@@ -300,6 +305,123 @@ class AgentInfo(BaseModel):
     started_at: float
 
 
+# The world's state, as its process writes it to its status file (fleet/world/status.py describes
+# the document).  These models read that file: unknown keys are ignored rather than refused, so a
+# world that reports more than this side knows still shows, and cutting the document down to the
+# status summary is just validating it with the smaller model (the bulky keys are skipped unread).
+
+
+class WorldData(BaseModel):
+    model_config = ConfigDict(extra="ignore")
+
+
+class Pose(WorldData):
+    x: float
+    y: float
+    yaw: float
+
+
+class Velocity(WorldData):
+    linear: float = 0.0
+    angular: float = 0.0
+
+
+class Contact(WorldData):
+    sim_time: float
+    a: str  # robot or obstacle names
+    b: str
+    kind: str  # robot-robot | robot-obstacle
+
+
+class Contacts(WorldData):
+    count: int = Field(0, ge=0)
+    last: list[Contact] = []
+
+
+class WorldProblem(WorldData):
+    sim_time: float | None = None
+    message: str
+
+
+class WorldRobot(WorldData):
+    pose: Pose
+    velocity: Velocity | None = None
+    battery: float | None = None  # fraction 0..1, None when no battery reports
+
+
+class WorldSummary(WorldData):
+    """What `fleet status` needs of the world: small whatever the number of robots' histories."""
+
+    sim_time: float = 0.0
+    real_time_factor: float = 0.0
+    robots: dict[str, WorldRobot] = {}
+    contacts: Contacts = Contacts()
+    errors: list[WorldProblem] = []
+
+
+class RobotModel(WorldData):
+    type: str
+    radius: float | None = None
+    length: float | None = None
+    width: float | None = None
+
+
+class WorldRobotFull(WorldRobot):
+    model: RobotModel | None = None
+    namespace: str | None = None
+    trail: list[tuple[float, float]] = []
+    scan_hits: list[tuple[float, float]] = []
+
+
+class Obstacle(WorldData):
+    name: str
+    type: Literal["box", "cylinder"]
+    position: tuple[float, float]
+    yaw: float = 0.0
+    size: list[float] | None = Field(None, min_length=2)  # boxes: [x, y, z]
+    radius: float | None = None  # cylinders
+    height: float | None = None
+
+    @model_validator(mode="after")
+    def _has_its_dimensions(self) -> "Obstacle":
+        if self.type == "cylinder" and self.radius is None:
+            raise ValueError(f"obstacle {self.name!r}: a cylinder needs a radius")
+        if self.type == "box" and self.size is None:
+            raise ValueError(f"obstacle {self.name!r}: a box needs a size")
+        return self
+
+
+class WorldDocument(WorldSummary):
+    """The whole status file: everything `fleet snapshot` draws (trails, lidar hits, obstacles)."""
+
+    fleet: str = ""
+    wall_time: float | None = None
+    physics_rate: float | None = None
+    robots: dict[str, WorldRobotFull] = {}
+    obstacles: list[Obstacle] = []
+
+
+STATUS_CONTACTS = 5  # contacts listed in a status reply (the world keeps more in its file)
+
+
+def world_document(data: dict[str, Any]) -> WorldDocument:
+    """The world status file, validated; raises ValueError with a readable reason."""
+    try:
+        return WorldDocument.model_validate(data)
+    except ValidationError as error:
+        raise ValueError(_short_validation_error(error)) from None
+
+
+def world_summary(document: dict[str, Any]) -> WorldSummary:
+    """The world status file cut to the status reply's summary; raises ValueError when invalid."""
+    try:
+        summary = WorldSummary.model_validate(document)
+    except ValidationError as error:
+        raise ValueError(_short_validation_error(error)) from None
+    summary.contacts.last = summary.contacts.last[-STATUS_CONTACTS:]
+    return summary
+
+
 class StatusReply(Message):
     kind: Literal["status"] = "status"
     agent: AgentInfo
@@ -308,8 +430,27 @@ class StatusReply(Message):
     reconciled_generation: int = 0  # the generation the units have been brought to
     domain_id: int | None = None
     robots: list[RobotState] = []
-    world: dict[str, Any] | None = None  # the world unit's status file, when this agent runs it
+    world: WorldSummary | None = None  # when this agent runs the fleet's world and it has reported
     time: float
+
+
+class WorldRequest(Message):
+    """The world's full state (for `fleet snapshot`), from the agent running it."""
+
+    kind: Literal["world"] = "world"
+    fleet: str
+
+    @field_validator("fleet")
+    @classmethod
+    def _fleet_is_key_chunk(cls, value: str) -> str:
+        return _check_key_name(value)
+
+
+class WorldReply(Message):
+    kind: Literal["world_reply"] = "world_reply"
+    fleet: str
+    agent: str
+    world: WorldDocument
 
 
 # ---------------------------------------------------------------------------------------------

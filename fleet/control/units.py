@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from fleet.control.protocol import BundleMessage, NodeState, RobotState, check_file_name
+from fleet.control.protocol import BundleMessage, NodeState, RobotState, WorldSummary, check_file_name, world_summary
 from fleet.control.state import write_atomic
 
 UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
@@ -138,25 +138,28 @@ class Unit:
             error=self.error,
         )
 
-    def world_status(self) -> dict[str, Any] | None:
-        """The world's status file, cut to what `fleet status` shows (no trails, no scan hits)."""
+    def world_file(self) -> dict[str, Any] | None:
+        """The world's status file as written (None: not the world, or nothing readable yet).
+
+        The world writes it atomically, so a read never sees half of one."""
         if self.bundle.kind != "world":
             return None
         try:
             data = json.loads((self.directory / WORLD_STATUS_FILE).read_text())
         except (OSError, ValueError):
             return None
-        if not isinstance(data, dict):
+        return data if isinstance(data, dict) else None
+
+    def world_summary(self) -> WorldSummary | None:
+        """What a status reply carries of the world: no trails, no scan hits, the last few contacts.
+        An invalid file (someone edited it) is left out rather than failing the whole status."""
+        data = self.world_file()
+        if data is None:
             return None
-        robots = data.get("robots") if isinstance(data.get("robots"), dict) else {}
-        return {
-            "sim_time": data.get("sim_time"),
-            "real_time_factor": data.get("real_time_factor"),
-            "robots": {
-                name: {"pose": entry.get("pose"), "battery": entry.get("battery")}
-                for name, entry in robots.items() if isinstance(entry, dict)
-            },
-        }
+        try:
+            return world_summary(data)
+        except ValueError:
+            return None
 
     def node_fqn(self, node: str) -> str | None:
         for state in self.node_states():

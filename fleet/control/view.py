@@ -3,7 +3,8 @@
 Agents that answer are online.  Agents the router's registry remembers but that did not answer
 are offline, with the time they were last seen; their robots come from the last deploy's plan
 record and show as `offline`.  Robots in the plan whose (online) agent does not run them yet
-are `pending`.
+are `pending`.  The world's summary (from the agent running it) gives robot rows their pose,
+velocity and battery, and each fleet with a world one WorldRow (sim time, RTF, contacts, errors).
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ class RobotRow:
     generation: int = 0
     digest: str = ""
     hot_digest: str = ""
-    pose: dict[str, float] | None = None
+    pose: dict[str, float] | None = None  # in the world frame, from the world's report
+    velocity: dict[str, float] | None = None  # linear m/s, angular rad/s
     battery: float | None = None
     overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
     error: str = ""
@@ -50,11 +52,25 @@ class RobotRow:
 
 
 @dataclass
+class WorldRow:
+    """A fleet's world as its agent last reported it (poses go to the robot rows)."""
+
+    fleet: str
+    agent: str
+    sim_time: float
+    real_time_factor: float
+    robots: int  # robots spawned in the world
+    contacts: dict[str, Any]  # {"count", "last": [{"sim_time", "a", "b", "kind"}]}
+    errors: list[dict[str, Any]]  # [{"sim_time", "message"}]: the world's current problems
+
+
+@dataclass
 class FleetView:
     agents: list[AgentRow]
     robots: list[RobotRow]
     generations: dict[tuple[str, str], int] = field(default_factory=dict)  # (fleet, agent) -> accepted
     domain_ids: dict[str, int] = field(default_factory=dict)
+    worlds: list[WorldRow] = field(default_factory=list)  # one per fleet whose world reported
 
     @property
     def all_running(self) -> bool:
@@ -73,6 +89,7 @@ class FleetView:
         return {
             "agents": [asdict(agent) for agent in self.agents],
             "robots": [asdict(robot) for robot in self.robots],
+            "worlds": [asdict(world) for world in self.worlds],
             "all_running": self.all_running,
         }
 
@@ -82,7 +99,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     robots: dict[tuple[str, str], RobotRow] = {}
     generations: dict[tuple[str, str], int] = {}
     domain_ids: dict[str, int] = {}
-    worlds: dict[str, dict] = {}
+    worlds: dict[str, tuple[str, p.WorldSummary]] = {}  # fleet -> (agent, summary)
 
     for status in statuses:
         info = status.agent
@@ -98,7 +115,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         if status.domain_id is not None:
             domain_ids[status.fleet] = status.domain_id
         if status.world is not None:
-            worlds[status.fleet] = status.world
+            worlds[status.fleet] = (info.name, status.world)
         for robot in status.robots:
             robots[(status.fleet, robot.name)] = RobotRow(
                 fleet=status.fleet, name=robot.name, kind=robot.kind, agent=info.name, state=robot.state,
@@ -125,25 +142,42 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             robots[(registry.fleet, robot)] = RobotRow(registry.fleet, robot, kind, agent, state)
 
     for (fleet, name), row in robots.items():
-        world_robot = (worlds.get(fleet) or {}).get("robots", {}).get(name)
-        if isinstance(world_robot, dict):
-            pose = world_robot.get("pose")
-            row.pose = pose if isinstance(pose, dict) else None
-            row.battery = _battery_fraction(world_robot.get("battery"))
+        world_robot = worlds[fleet][1].robots.get(name) if fleet in worlds else None
+        if world_robot is not None:
+            row.pose = world_robot.pose.model_dump()
+            row.velocity = world_robot.velocity.model_dump() if world_robot.velocity else None
+            row.battery = world_robot.battery
 
+    world_rows = [
+        WorldRow(fleet=fleet, agent=agent, sim_time=world.sim_time, real_time_factor=world.real_time_factor,
+                 robots=len(world.robots), contacts=world.contacts.model_dump(),
+                 errors=[problem.model_dump() for problem in world.errors])
+        for fleet, (agent, world) in sorted(worlds.items())
+    ]  # fmt: skip
     return FleetView(
         agents=sorted(agents.values(), key=lambda a: a.name),
         robots=sorted(robots.values(), key=lambda r: (r.fleet, r.kind != "world", r.name)),
         generations=generations,
         domain_ids=domain_ids,
+        worlds=world_rows,
     )
 
 
-def _battery_fraction(value: Any) -> float | None:
-    if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, dict):
-        for key in ("percentage", "fraction", "charge"):
-            if isinstance(value.get(key), (int, float)):
-                return float(value[key])
-    return None
+def locate_world(view: FleetView, fleet: str | None = None) -> tuple[str, str]:
+    """(fleet, agent) of the world to ask for its state; one clear error when there is none to ask."""
+    from fleet.errors import ControlError, FleetError
+
+    rows = [row for row in view.robots if row.kind == "world" and (fleet is None or row.fleet == fleet)]
+    if not rows:
+        if fleet:
+            raise ControlError(f"fleet {fleet} runs no world (not deployed here, or its spec has no world)")
+        raise ControlError("no fleet with a world is deployed (see `fleet status`)")
+    if len(rows) > 1:
+        raise FleetError(f"several fleets run a world ({', '.join(row.fleet for row in rows)}): pick one with --fleet")
+    row = rows[0]
+    if row.state == "offline":
+        raise ControlError(f"the world of fleet {row.fleet} runs on agent {row.agent}, which is offline")
+    if row.state in ("pending", "stopped", "failed"):
+        detail = f": {row.error}" if row.error else ""
+        raise ControlError(f"the world of fleet {row.fleet} is not running on agent {row.agent} ({row.state}{detail})")
+    return row.fleet, row.agent

@@ -1,7 +1,7 @@
 """A top-down picture of the world from plain status data (no pybullet, no ROS).
 
 `draw_snapshot(status, path)` takes the status document (status.py describes it) however it was
-obtained (the status file today, a Zenoh query later) and writes a PNG.
+obtained (a local status file, or the agent running the world over Zenoh) and writes a PNG.
 """
 
 from __future__ import annotations
@@ -82,12 +82,19 @@ def draw_snapshot(status: dict[str, Any], path: str | Path, obstacles: list[dict
         cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
         ax.set_xlim(cx - span / 2, cx + span / 2)
         ax.set_ylim(cy - span / 2, cy + span / 2)
+    above: list[tuple[float, float]] = []  # anchors of the labels drawn above their robot
     for x, y, yaw, reach, label in placed:
         # Heading arrows and labels sized to the picture, so they read at any world size.
         arrow = max(reach * 1.6, span * 0.035)
         ax.annotate("", xy=(x + arrow * math.cos(yaw), y + arrow * math.sin(yaw)), xytext=(x, y),
                     arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 1.5, "mutation_scale": 14}, zorder=5)
-        ax.annotate(label, (x, y + reach), xytext=(0, 6), textcoords="offset points", ha="center", va="bottom",
+        # Robots side by side (touching, say) would get their labels on top of each other: the
+        # second one goes below its robot.
+        crowded = any(abs(x - lx) < span * 0.15 and abs(y + reach - ly) < span * 0.04 for lx, ly in above)
+        if not crowded:
+            above.append((x, y + reach))
+        ax.annotate(label, (x, y - reach if crowded else y + reach), xytext=(0, -6 if crowded else 6),
+                    textcoords="offset points", ha="center", va="top" if crowded else "bottom",
                     fontsize=7 if len(placed) > 20 else 9, zorder=6,
                     bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "alpha": 0.75, "linewidth": 0})
     if placed:
@@ -98,7 +105,8 @@ def draw_snapshot(status: dict[str, Any], path: str | Path, obstacles: list[dict
     ax.set_ylabel("y [m]")
     contacts = (status.get("contacts") or {}).get("count", 0)
     heading = title or (f"{status.get('fleet', 'world')}: t = {status.get('sim_time', 0):.1f} s, "
-                        f"RTF {status.get('real_time_factor', 0):.2f}, {len(robots)} robots, {contacts} contacts")
+                        f"RTF {status.get('real_time_factor', 0):.2f}, {len(robots)} robots, "
+                        f"{contacts} contact{'' if contacts == 1 else 's'}")
     ax.set_title(heading)
     errors = status.get("errors") or []
     if errors:
