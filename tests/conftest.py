@@ -12,6 +12,10 @@ import pytest
 from fleet.testing.isolation import reserve_domain_id, ros_environment
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
 
+# FastDDS reads its transport choice once per process: set it before any test creates a
+# participant, so the test process, like the fleet's, keeps nothing in /dev/shm when killed.
+os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
+
 REPO = Path(__file__).resolve().parent.parent
 FLEETS = REPO / "fleets"
 TEMPLATES = REPO / "templates"
