@@ -88,7 +88,7 @@ def _node(body: dict, indent: int) -> str:
         pairs = ", ".join(f"({_expr(item['from'])}, {_expr(item['to'])})" for item in body["remap"])
         lines.append(f"remappings=[{pairs}]")
     if "respawn" in body:
-        lines.append(f"respawn={_expr(body['respawn'])}")
+        lines.append(f"respawn={_boolean(body['respawn'])}")
     if "respawn_delay" in body:
         lines.append(f"respawn_delay={float(body['respawn_delay'])!r}")
     condition = _condition(body).removeprefix(", ")
@@ -116,6 +116,16 @@ def _condition(body: Any) -> str:
     if "unless" in body:
         return f", condition=UnlessCondition({_expr(body['unless'])})"
     return ""
+
+
+def _boolean(value: Any) -> str:
+    """YAML launch files spell booleans 'true'/'false'; Python launch wants True/False there
+    (or a substitution, which is passed through)."""
+    if isinstance(value, bool):
+        return repr(value)
+    if str(value).lower() in ("true", "false"):
+        return repr(str(value).lower() == "true")
+    return _expr(value)
 
 
 def _token_list(text: Any) -> str:
