@@ -33,6 +33,12 @@ def run_fleet(args: list[str]) -> int:
     return 0
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _ros_log_dir(tmp_path_factory):
+    """rcl writes a log file per node process; keep them in pytest's temp dir, not ~/.ros/log."""
+    os.environ.setdefault("ROS_LOG_DIR", str(tmp_path_factory.mktemp("ros-log")))
+
+
 @pytest.fixture(autouse=True)
 def _reap_processes(request):
     """Mark every process this test starts; kill the ones still alive when it ends."""

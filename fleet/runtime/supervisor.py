@@ -238,6 +238,9 @@ class LaunchSession:
         env = dict(self.base_env)
         env["AMENT_PREFIX_PATH"] = ament.ament_prefix_path(self.base_env)
         env.setdefault("PYTHONUNBUFFERED", "1")  # node output reaches the log line by line
+        # rcl also writes each node's log to a file of its own: keep those with the session's
+        # logs instead of piling them up in ~/.ros/log.
+        env.setdefault("ROS_LOG_DIR", str(self.log_dir / "ros"))
         env.update(extra)
         return env
 
