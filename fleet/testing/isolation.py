@@ -60,3 +60,11 @@ def free_tcp_port(host: str = "127.0.0.1") -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
         sock.bind((host, 0))
         return sock.getsockname()[1]
+
+
+def with_domain_id(spec, domain_id: int):
+    """A copy of a FleetSpec whose nodes use `domain_id` (pure: the spec is not changed).
+
+    Tests override the spec's ros.domain_id with a reserved one so two runs of the same spec on
+    one machine never see each other's topics."""
+    return spec.model_copy(update={"ros": spec.ros.model_copy(update={"domain_id": domain_id})})

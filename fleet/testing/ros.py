@@ -2,8 +2,9 @@
 
 Used by integration tests (ours and users', through the pytest plugin) to look at nodes and
 topics, publish and subscribe, and read and change parameters, from outside the fleet's
-processes.  Needs ROS_DOMAIN_ID (and ROS_AUTOMATIC_DISCOVERY_RANGE) set in this process's
-environment before it is created, since rclpy reads them when the context starts.
+processes.  It joins `domain_id` when given, else ROS_DOMAIN_ID of this process's environment;
+ROS_AUTOMATIC_DISCOVERY_RANGE must be set in the environment before it is created (rclpy reads
+it when the context starts).
 """
 
 from __future__ import annotations
@@ -30,14 +31,15 @@ class Subscription:
 
 
 class RosProbe:
-    def __init__(self, name: str = "fleet_test_probe"):
+    def __init__(self, name: str = "fleet_test_probe", domain_id: int | None = None):
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
         self.context = Context()
-        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=[], context=self.context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)

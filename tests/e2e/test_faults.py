@@ -1,0 +1,172 @@
+"""Faults, each followed by a check that the fleet is back to its desired state and that no
+process leaked.  fleets/two_robots.yaml on two agents (hostA: the world and robot1, hostB:
+robot2), so an agent's fault hits part of the fleet while the rest keeps running."""
+
+from __future__ import annotations
+
+import signal
+import time
+
+import psutil
+import pytest
+from e2e_helpers import TWO_ROBOTS, RouteProgress, node_pids, spec_with, wait_driving
+
+from fleet.testing import Pose, running_fleet
+
+pytestmark = pytest.mark.integration
+
+ROBOTS = ("robot1", "robot2")
+
+
+def on_two_agents(data) -> None:
+    data["agents"] = {"hostA": {"description": "world and robot1"}, "hostB": {"description": "robot2"}}
+    data["defaults"]["agent"] = "hostA"
+    data["world"]["agent"] = "hostA"
+    next(robot for robot in data["robots"] if robot["name"] == "robot2")["agent"] = "hostB"
+
+
+@pytest.fixture(scope="module")
+def spec(tmp_path_factory):
+    return spec_with(TWO_ROBOTS, tmp_path_factory.mktemp("spec"), on_two_agents)
+
+
+@pytest.fixture(scope="module")
+def two_agents(tmp_path_factory, spec):
+    with running_fleet(spec, directory=tmp_path_factory.mktemp("faults")) as fleet:
+        yield fleet
+
+
+@pytest.fixture
+def fleet(two_agents, spec):
+    """The module's fleet running its spec, whatever an earlier (maybe failed) test left."""
+    two_agents.start_missing()
+    two_agents.deploy(spec, sets=[])
+    two_agents.wait_desired_state()
+    wait_driving(two_agents, ROBOTS)
+    return two_agents
+
+
+def drives_on(fleet, robot: str, distance: float = 0.3, sim_timeout: float = 10.0) -> None:
+    start = fleet.pose(robot)
+    fleet.wait_for(lambda: fleet.pose(robot).distance_to(start) > distance, sim_timeout=sim_timeout,
+                   what=f"{robot} to drive {distance} m")
+
+
+def test_killed_node_is_respawned(fleet):
+    old = fleet.kill_node("robot1", "controller")
+    fleet.wait_desired_state(timeout=30)
+    controller = next(node for node in fleet.robot_status("robot1").nodes if node["name"] == "controller")
+    assert controller["pid"] != old and controller["restarts"] >= 1
+    drives_on(fleet, "robot1")
+    fleet.assert_no_leaks()
+
+
+def test_killed_agent_restores_its_robots_from_persisted_state(fleet):
+    before = node_pids(fleet.status())
+    generation = fleet.robot_status("robot2").generation
+    fleet.kill_agent("hostB")
+    fleet.wait_for(lambda: fleet.robot_status("robot2").state == "offline", timeout=5, what="robot2 shown offline")
+    fleet.wait_for(lambda: not any(psutil.pid_exists(pid) for pid in before["robot2"]), timeout=5,
+                   what="robot2's nodes to die with their agent")
+
+    fleet.start_agent("hostB")  # same state directory, no deploy: it restores what it had accepted
+    after = node_pids(fleet.wait_desired_state(timeout=60))
+    assert fleet.robot_status("robot2").generation == generation
+    assert after["robot2"].isdisjoint(before["robot2"])
+    assert after["robot1"] == before["robot1"] and after["world"] == before["world"]
+    drives_on(fleet, "robot2")
+    fleet.assert_no_leaks()
+
+
+def test_killed_world_restarts_with_robots_at_their_last_poses(fleet):
+    spawn = {robot: Pose(fleet.spec.robot(robot).pose.x, fleet.spec.robot(robot).pose.y, 0.0) for robot in ROBOTS}
+    fleet.wait_for(lambda: all(fleet.pose(r).distance_to(spawn[r]) > 0.5 for r in ROBOTS), sim_timeout=20,
+                   what="both robots 0.5 m away from their spawn poses")
+    robots_before = {robot: fleet.pids(robot) for robot in ROBOTS}
+    killed_at = time.time()
+    fleet.kill_world()
+    last = {robot: fleet.pose(robot) for robot in ROBOTS}  # the dead world's last status file
+
+    # The respawned world's first status: each robot where the old world left it (it may have
+    # driven since, at most 1 m/s times the new world's sim time).
+    first = fleet.wait_for(lambda: (world := fleet.world()) and world["wall_time"] > killed_at and world,
+                           timeout=30, what="a status from the restarted world")
+    for robot in ROBOTS:
+        pose = first["robots"][robot]["pose"]
+        moved = last[robot].distance_to((pose["x"], pose["y"]))
+        assert moved <= 1.0 * first["sim_time"] + 0.05, (robot, last[robot], pose, first["sim_time"])
+
+    fleet.wait_desired_state(timeout=30)
+    assert {robot: fleet.pids(robot) for robot in ROBOTS} == robots_before  # the robots' nodes kept running
+    for robot in ROBOTS:  # and they patrol on, on the new world's clock
+        route = RouteProgress(fleet, robot)
+        fleet.wait_for(lambda: route.update() >= 2, sim_timeout=30, what=f"{robot} to reach two more waypoints")
+    fleet.assert_no_leaks()
+
+
+def test_router_restart_agents_reconnect(fleet):
+    before = node_pids(fleet.status())
+    fleet.kill_router(signal.SIGKILL)
+    fleet.wait_sim(1.0)  # robots keep running without the control plane
+    assert all(psutil.pid_exists(pid) for pids in before.values() for pid in pids)
+
+    restarted = time.monotonic()
+    fleet.start_router()
+
+    def back():
+        view = fleet.status()
+        online = {agent.name for agent in view.agents if agent.online}
+        return online == {"hostA", "hostB"} and view.all_running and len(view.robots) == 3 and view
+
+    view = fleet.wait_for(back, timeout=15, what="both agents to answer status through the new router")
+    took = time.monotonic() - restarted
+    assert took < 5.0, f"status worked again only {took:.1f} s after the router restart"
+    assert node_pids(view) == before
+    fleet.wait_desired_state(timeout=10)
+    fleet.assert_no_leaks()
+
+
+def test_deploy_while_an_agent_is_down_is_reported_then_completed(fleet):
+    sets = ["robot1.controller.max_speed=0.5", "robot2.controller.max_speed=0.6"]
+    fleet.kill_agent("hostB")
+    outcome = fleet.deploy(sets=sets, check=False, timeout=30)
+    assert not outcome.ok and set(outcome.unreachable) == {"hostB"}
+    rows = {row.name: row for row in fleet.status().robots}
+    assert rows["robot1"].state == "running" and rows["robot1"].generation == outcome.generation
+    assert rows["robot2"].state == "offline"
+    assert fleet.get_param("robot1", "controller", "max_speed") == 0.5
+
+    # hostB comes back with what it had accepted (robot2 as before) ...
+    fleet.start_agent("hostB")
+    fleet.wait_for(lambda: fleet.robot_status("robot2").state == "running", timeout=60, what="robot2 restored")
+    assert fleet.robot_status("robot2").generation < outcome.generation
+    robot1_pids = fleet.pids("robot1")
+    # ... and the same deploy, sent again, completes: only hostB has anything left to do.
+    completed = fleet.deploy(sets=sets)
+    assert completed.replies["hostA"].changes.nothing
+    assert completed.replies["hostB"].changes.restart == ["robot2"]
+    fleet.wait_desired_state()
+    assert fleet.pids("robot1") == robot1_pids
+    assert fleet.get_param("robot2", "controller", "max_speed") == 0.6
+    fleet.assert_no_leaks()
+
+
+@pytest.mark.soak
+def test_fleet_survives_repeated_faults(fleet):
+    """Every fault five times over, the fleet back to its desired state after each, robots still
+    patrolling without touching each other, nothing leaked."""
+    for round_ in range(5):
+        fleet.kill_node("robot2", ["controller", "battery", "safety"][round_ % 3])
+        fleet.wait_desired_state(timeout=30)
+        fleet.restart_agent("hostB")
+        fleet.wait_desired_state(timeout=60)
+        fleet.kill_world()
+        fleet.wait_desired_state(timeout=30)
+        fleet.restart_router(signal.SIGKILL if round_ % 2 else signal.SIGTERM)
+        fleet.wait_desired_state(timeout=30)
+        fleet.restart_agent("hostA", signal.SIGKILL if round_ % 2 else signal.SIGTERM)
+        fleet.wait_desired_state(timeout=60)
+        for robot in ROBOTS:
+            drives_on(fleet, robot)
+        fleet.assert_no_leaks()
+    assert not [c for c in fleet.contacts() if {c["a"], c["b"]} == set(ROBOTS)]

@@ -1,0 +1,71 @@
+"""fleet.testing as a user meets it: the plugin loads from the installed entry point in another
+repository, a failing test's report carries the fleet's status, logs and a snapshot, and
+nothing of its fleet outlives the run.  Plus the pure isolation helper."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import psutil
+import pytest
+from e2e_helpers import SAFETY_STOP
+
+from fleet.expand import expand_fleet
+from fleet.spec import load_spec
+from fleet.testing.isolation import with_domain_id
+
+pytestmark = pytest.mark.integration
+
+USER_TEST = '''
+from pathlib import Path
+
+SPEC = Path(__file__).parent / "fleets" / "safety_stop.yaml"
+
+
+def test_scout_passes_the_crate(fleet_up):
+    fleet = fleet_up(SPEC)
+    fleet.wait_for(lambda: fleet.pose("scout").x > 3.0, sim_timeout=3, what="scout to pass the crate")
+'''
+
+
+def test_spec_gets_the_reserved_domain_and_stays_unchanged():
+    spec = load_spec(SAFETY_STOP)
+    isolated = with_domain_id(spec, 177)
+    assert (spec.ros.domain_id, isolated.ros.domain_id) == (43, 177)
+    assert expand_fleet(isolated).domain_id == 177
+    assert isolated.source_file == spec.source_file and isolated.robots == spec.robots
+
+
+def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
+    repo = tmp_path / "my_robots"
+    (repo / "fleets").mkdir(parents=True)
+    shutil.copy(SAFETY_STOP, repo / "fleets" / "safety_stop.yaml")
+    (repo / "test_scout.py").write_text(USER_TEST)
+    basetemp = tmp_path / "basetemp"
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
+    done = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist",
+                           f"--basetemp={basetemp}", "test_scout.py"],
+                          cwd=repo, env=env, capture_output=True, text=True, timeout=240)
+    output = done.stdout + done.stderr
+    assert done.returncode == 1, output
+    assert "timed out waiting for scout to pass the crate" in output and "s of sim time (limit 3)" in output
+    for section in ("status", "control plane", "node logs", "world"):
+        assert f"fleet safety_stop: {section}" in output, output
+    assert re.search(r"scout +local +running +3/3", output), output  # the status table
+    assert "[scout.controller]: started:" in output  # a node's log
+    snapshot = re.search(r"snapshot: (\S+\.png)", output)
+    assert snapshot and os.path.getsize(snapshot.group(1)) > 10_000, output
+
+    # Nothing of the user's fleet is left: no process has its state directory any more.
+    def of_that_run(process) -> bool:
+        try:
+            return process.environ().get("FLEET_STATE_DIR", "").startswith(str(basetemp))
+        except psutil.Error:
+            return False
+
+    assert not [p.pid for p in psutil.process_iter() if of_that_run(p)]
