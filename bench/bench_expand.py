@@ -44,6 +44,12 @@ def time_render(spec_path: Path, out: Path) -> float:
     return time.perf_counter() - start
 
 
+def time_expand_only(spec_path: Path) -> float:
+    start = time.perf_counter()
+    expand_fleet(load_spec(spec_path))
+    return time.perf_counter() - start
+
+
 def time_plain_write(files: dict[Path, str]) -> float:
     start = time.perf_counter()
     for path, text in files.items():
@@ -61,14 +67,16 @@ def main() -> None:
         root = Path(temporary)
         spec_path = root / "fleet.yaml"
         make_spec(args.robots, spec_path)
-        render_times, write_times = [], []
+        render_times, write_times, expand_times = [], [], []
         for run in range(args.repeat):
+            expand_times.append(time_expand_only(spec_path))
             out = root / f"render{run}"
             render_times.append(time_render(spec_path, out))
             files = {root / f"plain{run}" / p.relative_to(out): p.read_text() for p in out.rglob("*") if p.is_file()}
             write_times.append(time_plain_write(files))
         size = sum(len(text.encode()) for text in files.values())
     render, write = statistics.median(render_times), statistics.median(write_times)
+    expand = statistics.median(expand_times)
     lines = [
         f"# Expansion benchmark ({args.robots} robots)",
         "",
@@ -77,6 +85,7 @@ def main() -> None:
         "| what | median (s) | min (s) | max (s) |",
         "|---|---|---|---|",
         f"| validate + expand + write {len(files)} files ({size / 1e6:.1f} MB) | {render:.3f} | {min(render_times):.3f} | {max(render_times):.3f} |",
+        f"| validate + expand only (no writing) | {expand:.3f} | {min(expand_times):.3f} | {max(expand_times):.3f} |",
         f"| write the same bytes to the same number of files | {write:.3f} | {min(write_times):.3f} | {max(write_times):.3f} |",
         "",
         f"Ratio render / plain write: {render / write:.1f}x (target: under 1 s wall, within 3x of plain writing).",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Callable
 
 from fleet.errors import Location, SpecError
@@ -25,7 +26,11 @@ class Setting:
 
     value: Any
     layer: str  # one of LAYERS
-    source: str  # file:line or the --set argument
+    where: str | Callable[[], str]  # file:line or the --set argument; a callable is asked only when shown
+
+    @property
+    def source(self) -> str:
+        return self.where() if callable(self.where) else self.where
 
 
 @dataclass(frozen=True)
@@ -61,11 +66,12 @@ class ParameterLayers:
         self.history: dict[tuple[str, str], list[Setting]] = {}
 
     def add(self, node: str, parameters: dict[str, Any], layer: str, source: Callable[[tuple], str]) -> None:
-        """Add a layer's values; source(key_path) says where each one is written."""
+        """Add a layer's values; source(key_path) says where each one is written (located lazily:
+        a big fleet has tens of thousands of values and only --explain and errors show places)."""
         for name, (key_path, value) in flatten(parameters).items():
-            self.set(node, name, value, layer, source(key_path))
+            self.set(node, name, value, layer, partial(source, key_path))
 
-    def set(self, node: str, name: str, value: Any, layer: str, source: str) -> None:
+    def set(self, node: str, name: str, value: Any, layer: str, source: str | Callable[[], str]) -> None:
         settings = self.history.setdefault((node, name), [])
         reference = settings[0].value if settings else None
         settings.append(Setting(normalize(coerce_like(value, reference)), layer, source))

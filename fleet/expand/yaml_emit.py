@@ -16,6 +16,7 @@ from typing import Any
 # Strings that read back as the same string when written bare: names, namespaces, file names.
 _PLAIN = re.compile(r"[A-Za-z_/][A-Za-z0-9_./-]*")
 _YAML_WORDS = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"}
+_PLAIN_KEY = re.compile(r"[A-Za-z_/.][A-Za-z0-9_/.]*")
 
 
 def scalar(value: Any) -> str:
@@ -68,6 +69,6 @@ def emit(tree: dict[str, Any], indent: int = 0) -> str:
 def _key(key: str) -> str:
     # Keys are ROS names, parameter names or fully-qualified node names (/robot1/controller):
     # all plain YAML scalars.  Quote anything else rather than trust it.
-    if key and all(ch.isalnum() or ch in "_/." for ch in key) and not key[0].isdigit():
+    if _PLAIN_KEY.fullmatch(key) and key.lower() not in _YAML_WORDS:
         return key
     return json.dumps(key, ensure_ascii=True)
