@@ -29,9 +29,11 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "control"))
+sys.path.insert(0, str(REPO))
 
 from control_helpers import Cluster, wait_until  # noqa: E402
 
+from bench.machine import machine_description  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id, ros_environment  # noqa: E402
 
 
@@ -249,13 +251,6 @@ def baseline(runs: int, results: dict) -> None:
 # -- report ------------------------------------------------------------------------------------
 
 
-def machine() -> str:
-    sys.path.insert(0, str(REPO))
-    from bench.machine import machine_description
-
-    return machine_description()
-
-
 def med(values: list[float]) -> str:
     return f"{statistics.median(values):.3f} s" if values else "n/a"
 
@@ -268,8 +263,8 @@ def report(results: dict, runs: int) -> str:
     lines = [
         "# Control-plane benchmarks",
         "",
-        f"Machine: {machine()}. Load average (1 min) at the end of the run: {os.getloadavg()[0]:.1f}",
-        "(the machine is shared with other engineers' test runs). Medians of the runs below.",
+        f"Machine: {machine_description()}",
+        "Medians of the runs below.",
         "Produced by `bench/bench_control.py`.",
         "",
         "| measurement | median | range | target |",

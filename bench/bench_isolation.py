@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -25,6 +24,9 @@ from pathlib import Path
 
 import psutil
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.machine import machine_info  # noqa: E402
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.isolation import reserve_domain_id, ros_environment
@@ -69,25 +71,6 @@ PARAMS = """\
 NODES_PER_ROBOT = ("controller", "battery", "safety")
 SETTLE = 3.0  # s after the graph is complete, before measuring memory
 MIB = 1024 * 1024
-
-
-def machine() -> dict[str, str]:
-    model = platform.processor() or "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {
-        "nproc": str(os.cpu_count()),
-        "cpu": model,
-        "ram": f"{psutil.virtual_memory().total / 1024**3:.1f} GiB",
-        "kernel": platform.release(),
-        "python": platform.python_version(),
-        "load": " ".join(f"{value:.2f}" for value in os.getloadavg()),
-    }
 
 
 def pss_and_rss(pid: int) -> tuple[int, int]:
@@ -260,7 +243,7 @@ def main() -> int:
                         help="extra environment of the node processes (e.g. MALLOC_ARENA_MAX=2)")
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "isolation.md")
     args = parser.parse_args()
-    info = machine()
+    info = machine_info()
     results = []
     with tempfile.TemporaryDirectory(prefix="fleet-bench-") as workdir, reserve_domain_id() as domain:
         env = ros_environment(domain.domain_id)

@@ -16,7 +16,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -24,6 +23,10 @@ import time
 from pathlib import Path
 
 import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.machine import machine_info  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "world.md"
@@ -104,27 +107,6 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
             "scan_hz": published["scan"] / sim_duration / max(spawned, 1), "contacts": contacts, "rss_mib": rss}
 
 
-def machine() -> dict:
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    mem = "unknown"
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemTotal"):
-                mem = f"{int(line.split()[1]) / 1024 / 1024:.1f} GiB"
-    except OSError:
-        pass
-    return {"nproc": os.cpu_count(), "cpu": cpu, "ram": mem, "python": platform.python_version(),
-            "load": " ".join(f"{x:.2f}" for x in os.getloadavg()),
-            "kernel": platform.release()}
-
-
 def child(model: str, count: int, sim: float, env: dict) -> dict | None:
     done = subprocess.run([sys.executable, __file__, "--child", model, str(count), str(sim)], env=env,
                           capture_output=True, text=True, timeout=900)
@@ -186,7 +168,7 @@ def main() -> None:
                 rows.append(row)
                 per_robot_step = row["wall"] / husky_sim / row["robots"]
                 print(table([row]).splitlines()[-1], flush=True)
-    info = machine()
+    info = machine_info()
     text = table(rows)
     print(text)
     if args.quick:

@@ -9,7 +9,9 @@ Threads, and why:
   marker when the agent starts again.)
 - The main thread owns the Zenoh session: it opens it (retrying while no router answers; robots
   keep running meanwhile) and closes it on shutdown.  Zenoh reconnects a client by itself when
-  the router comes back, re-declaring queryables and liveliness tokens.
+  the router comes back, re-declaring queryables and liveliness tokens.  Every few seconds it
+  asks the router for desired states newer than it holds (a deploy made while we were away or
+  disconnected) and applies them like a received apply.
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ from fleet.control.units import UNIT_MARKER, Unit
 log = logging.getLogger("fleet.agent")
 
 PARAM_TIMEOUT = 30.0  # a loaded host needs seconds for rclpy start-up and discovery
+DESIRED_POLL = 3.0  # how often to ask the router for desired states newer than ours
+DESIRED_TIMEOUT = 5.0
 
 
 class Agent:
@@ -89,8 +93,12 @@ class Agent:
             if self._session is not None:
                 self._declare(self._session)
                 log.info("agent %s serving on %s", self.name, ", ".join(self.connect))
-                while not self.stop_event.wait(0.5):  # a timed wait lets signal handlers run
-                    pass
+                next_fetch = 0.0
+                while not self.stop_event.is_set():
+                    if time.monotonic() >= next_fetch:
+                        self._fetch_desired(self._session)
+                        next_fetch = time.monotonic() + DESIRED_POLL
+                    self.stop_event.wait(0.5)  # a timed wait lets signal handlers run
         finally:
             self.stop_event.set()
             session, self._session = self._session, None
@@ -165,14 +173,51 @@ class Agent:
     # -- apply ------------------------------------------------------------------------------------
 
     def _handle_apply(self, query):
-        request = p.decode(_payload(query), p.ApplyRequest)
-        if request.agent != self.name:
-            raise p.ProtocolError(f"this is agent {self.name!r}, not {request.agent!r}", "wrong_agent")
-        key_fleet = p.fleet_of_key(query.key_expr)
-        if key_fleet != request.fleet:
-            raise p.ProtocolError(f"apply for fleet {request.fleet!r} sent on {query.key_expr}", "invalid")
+        request = self._check_apply(_payload(query), query.key_expr)
         reply = self.apply(request)
         yield p.apply_key(request.fleet, self.name), p.encode(reply)
+
+    def _check_apply(self, payload: bytes | None, key) -> p.ApplyRequest:
+        """Decode and validate an apply (received, or fetched from the router); ProtocolError if bad."""
+        request = p.decode(payload, p.ApplyRequest)
+        if request.agent != self.name:
+            raise p.ProtocolError(f"this is agent {self.name!r}, not {request.agent!r}", "wrong_agent")
+        key_fleet = p.fleet_of_key(key)
+        if key_fleet != request.fleet:
+            raise p.ProtocolError(f"apply for fleet {request.fleet!r} sent on {key}", "invalid")
+        return request
+
+    def _fetch_desired(self, session) -> None:
+        """Apply what the router stored for us if it is newer than what we hold (a deploy or a
+        `fleet down` made while we were away).  Bad data is logged and leaves our state alone."""
+        import zenoh
+
+        with self._lock:
+            held = {fleet: state.generation for fleet, state in self._fleets.items()}
+        try:
+            replies = session.get(
+                p.desired_key("*", self.name), payload=p.encode(p.DesiredQuery(held=held)),
+                target=zenoh.QueryTarget.ALL, consolidation=zenoh.QueryConsolidation(zenoh.ConsolidationMode.NONE),
+                timeout=DESIRED_TIMEOUT,
+            )  # fmt: skip
+            for reply in replies:
+                if reply.ok is None:
+                    log.warning("router refused the desired-state query: %s", reply.err.payload.to_bytes()[:200])
+                    continue
+                try:
+                    request = self._check_apply(reply.ok.payload.to_bytes(), reply.ok.key_expr)
+                except p.ProtocolError as error:
+                    log.error("ignoring desired state from %s: %s", reply.ok.key_expr, error)
+                    continue
+                if request.generation <= held.get(request.fleet, -1):
+                    continue  # never go back: the later generation wins
+                result = self.apply(request)
+                log.info("fetched desired state of fleet %s, generation %d: %s", request.fleet,
+                         request.generation, "accepted" if result.accepted else result.reason)  # fmt: skip
+        except zenoh.ZError as error:  # no router right now: the next round tries again
+            log.debug("cannot fetch desired states: %s", error)
+        except Exception:  # never let this take the agent down: the next round tries again
+            log.exception("fetching desired states failed")
 
     def apply(self, request: p.ApplyRequest) -> p.ApplyReply:
         """Accept (persist, then schedule) or refuse one desired state; serialised by the lock."""

@@ -89,6 +89,11 @@ class ControlClient:
     def put_plan(self, plan: p.PlanRecord) -> None:
         self.session.put(p.plan_key(plan.fleet), p.encode(plan))
 
+    def put_desired(self, requests: list[p.ApplyRequest]) -> None:
+        """Leave each agent's desired state with the router: an agent that was away fetches it."""
+        for request in requests:
+            self.session.put(p.desired_key(request.fleet, request.agent), p.encode(request))
+
 
 def _kind(data: bytes) -> str | None:
     try:

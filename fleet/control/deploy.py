@@ -41,6 +41,19 @@ def requests_for(expansion, generation: int, serving: set[str]) -> list[p.ApplyR
     ]
 
 
+def with_planned_agents(requests: list[p.ApplyRequest], registries: list[p.RegistryReply], fleet: str,
+                        generation: int, domain_id: int) -> list[p.ApplyRequest]:
+    """`requests` plus an empty desired state for every agent the last plan placed robots on
+    that gets none now (an agent away right now stops them when it comes back)."""
+    planned = {agent for r in registries if r.fleet == fleet and r.plan for agent in r.plan.robots.values()}
+    missing = sorted(planned - {request.agent for request in requests})
+    return requests + [
+        p.ApplyRequest(fleet=fleet, agent=agent, generation=generation, domain_id=domain_id, bundles=[],
+                       sent_at=time.time())  # fmt: skip
+        for agent in missing
+    ]
+
+
 def plan_record(expansion, generation: int) -> p.PlanRecord:
     return p.PlanRecord(
         fleet=expansion.fleet,
@@ -135,6 +148,10 @@ def deploy(
     outcome = Outcome(generation=new_generation())
     requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet))
     outcome.replies = client.send_applies(requests)
+    # After the applies (an agent that took its apply directly then holds this generation already):
+    # the router keeps each desired state for agents that were away, and the plan for status.
+    client.put_desired(with_planned_agents(requests, registries, expansion.fleet, outcome.generation,
+                                           expansion.domain_id))  # fmt: skip
     client.put_plan(plan_record(expansion, outcome.generation))
     for reply in outcome.replies.values():
         if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
@@ -189,7 +206,8 @@ def _hopeless(view: FleetView, wanted: set[str], generation: int) -> bool:
 
 
 def down(client: ControlClient, fleet: str, wait: bool = True, timeout: float = 30.0) -> dict[str, p.ApplyReply | ControlError]:
-    """Send every agent serving `fleet` an empty desired state and forget the plan."""
+    """Send every agent serving `fleet` an empty desired state (left with the router too, for
+    agents away now) and forget the plan."""
     statuses, registries = client.status(fleet)
     view = build_view(statuses, registries, time.time())
     generation = new_generation()
@@ -200,6 +218,7 @@ def down(client: ControlClient, fleet: str, wait: bool = True, timeout: float = 
         for agent in serving
     ]
     replies = client.send_applies(requests) if requests else {}
+    client.put_desired(with_planned_agents(requests, registries, fleet, generation, view.domain_ids.get(fleet, 0)))
     client.put_plan(p.PlanRecord(fleet=fleet, generation=generation, robots={}, deployed_at=time.time()))
     deadline = time.monotonic() + timeout
     while wait and requests and time.monotonic() < deadline:

@@ -14,6 +14,8 @@ Key space (every key lives under the fleet's name, so several fleets share one r
     fleet/<fleet>/status/agent/<agent>     queryable  (no payload) -> StatusReply
     fleet/<fleet>/status/registry          queryable  (router)     -> RegistryReply
     fleet/<fleet>/plan                     put        PlanRecord (deploy -> router registry)
+    fleet/<fleet>/desired/<agent>          put        ApplyRequest (deploy/down -> router registry)
+                                           queryable  (router) DesiredQuery -> the stored ApplyRequests
     fleet/<fleet>/alive/agent/<agent>      liveliness token, one per fleet the agent serves
 
 An agent declares its queryables with `*` in the fleet chunk: it serves whatever fleet is
@@ -89,6 +91,11 @@ def status_query(fleet: str | None = None) -> str:
 
 def plan_key(fleet: str) -> str:
     return f"fleet/{fleet}/plan"
+
+
+def desired_key(fleet: str, agent: str) -> str:
+    """The router keeps the latest apply of each agent here, for agents that were away."""
+    return f"fleet/{fleet}/desired/{agent}"
 
 
 def alive_key(fleet: str, agent: str) -> str:
@@ -523,6 +530,16 @@ class RegistryReply(Message):
     fleet: str
     plan: PlanRecord | None = None
     agents: dict[str, AgentSeen] = {}
+
+
+class DesiredQuery(Message):
+    """An agent asking the router for its stored desired states (`fleet/*/desired/<agent>`).
+
+    The router answers only those newer than what the agent holds, so the periodic ask is cheap;
+    an empty one (`fleet down`) only for a fleet the agent holds."""
+
+    kind: Literal["desired_query"] = "desired_query"
+    held: dict[str, int] = {}  # fleet -> generation the agent holds
 
 
 class ErrorReply(Message):

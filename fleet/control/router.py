@@ -4,7 +4,10 @@ The CLI is short-lived, so someone must remember which agents were seen when, an
 deployed where (to show the robots of an offline agent).  The router is always there, so it
 keeps that registry: it watches the agents' liveliness tokens, stores the plan record each
 deploy puts on `fleet/<fleet>/plan`, and answers `fleet/<fleet>/status/registry` as part of the
-one wildcard status query.  With --state-dir the registry survives router restarts.
+one wildcard status query.  It also stores each agent's latest desired state (the apply a deploy
+or `fleet down` puts on `fleet/<fleet>/desired/<agent>`) and hands it to the agent when asked, so
+an agent that was away when the deploy ran completes it when it comes back.  With --state-dir
+the registry survives router restarts.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ class Registry:
         self._lock = threading.Lock()
         self._plans: dict[str, p.PlanRecord] = {}
         self._agents: dict[str, dict[str, p.AgentSeen]] = {}  # fleet -> agent -> seen
+        self._desired: dict[str, dict[str, p.ApplyRequest]] = {}  # fleet -> agent -> latest apply
         self._load()
 
     def _load(self) -> None:
@@ -35,6 +39,10 @@ class Registry:
         try:
             data = json.loads(self.state_file.read_text())
             self._plans = {f: p.PlanRecord.model_validate(v) for f, v in data.get("plans", {}).items()}
+            self._desired = {
+                f: {a: p.ApplyRequest.model_validate(r) for a, r in agents.items()}
+                for f, agents in data.get("desired", {}).items()
+            }
             for fleet, agents in data.get("agents", {}).items():
                 # After a router restart nobody is known to be online until its token shows up.
                 self._agents[fleet] = {
@@ -49,6 +57,7 @@ class Registry:
         data = {
             "plans": {f: plan.model_dump() for f, plan in self._plans.items()},
             "agents": {f: {a: s.model_dump() for a, s in agents.items()} for f, agents in self._agents.items()},
+            "desired": {f: {a: r.model_dump() for a, r in agents.items()} for f, agents in self._desired.items()},
         }
         write_atomic(self.state_file, json.dumps(data).encode())
 
@@ -80,6 +89,44 @@ class Registry:
                     self._agents.pop(plan.fleet, None)
                 self._save()
 
+    def on_desired(self, sample) -> None:
+        try:
+            request = p.decode(sample.payload.to_bytes(), p.ApplyRequest)
+        except p.ProtocolError as error:
+            log.warning("ignoring desired state on %s: %s", sample.key_expr, error)
+            return
+        if str(sample.key_expr) != p.desired_key(request.fleet, request.agent):
+            log.warning("ignoring desired state for %s/%s put on %s", request.fleet, request.agent, sample.key_expr)
+            return
+        with self._lock:
+            held = self._desired.get(request.fleet, {}).get(request.agent)
+            if held is None or request.generation >= held.generation:  # the later generation wins
+                self._desired.setdefault(request.fleet, {})[request.agent] = request
+                self._save()
+
+    def on_desired_query(self, query) -> None:
+        """Reply with each stored desired state newer than what the asking agent holds."""
+        import zenoh
+
+        try:
+            payload = query.payload
+            asked = p.decode(payload.to_bytes(), p.DesiredQuery) if payload is not None else p.DesiredQuery()
+        except p.ProtocolError as error:
+            query.reply_err(p.error_reply(error))
+            return
+        wanted = zenoh.KeyExpr(str(query.key_expr))
+        with self._lock:
+            replies = [
+                (p.desired_key(fleet, agent), p.encode(request))
+                for fleet, agents in self._desired.items()
+                for agent, request in agents.items()
+                if wanted.intersects(zenoh.KeyExpr(p.desired_key(fleet, agent)))
+                and request.generation > asked.held.get(fleet, -1)
+                and (request.bundles or fleet in asked.held)  # a `fleet down` only for a fleet it holds
+            ]
+        for key, payload in replies:
+            query.reply(key, payload)
+
     def on_query(self, query) -> None:
         wanted = p.fleet_of_key(query.key_expr)
         with self._lock:
@@ -102,6 +149,8 @@ def serve_router(session, registry: Registry):
         session.liveliness().declare_subscriber("fleet/*/alive/agent/*", registry.on_liveliness, history=True),
         session.declare_subscriber("fleet/*/plan", registry.on_plan),
         session.declare_queryable("fleet/*/status/registry", registry.on_query),
+        session.declare_subscriber(p.desired_key("*", "*"), registry.on_desired),
+        session.declare_queryable(p.desired_key("*", "*"), registry.on_desired_query),
     ]
 
 

@@ -13,7 +13,9 @@ import socket
 import tempfile
 from pathlib import Path
 
-from fleet.runtime.environment import ros_environment  # noqa: F401  (re-exported for tests)
+from fleet.runtime.environment import ros_environment
+
+__all__ = ["DomainReservation", "free_tcp_port", "reserve_domain_id", "ros_environment", "with_domain_id"]
 
 # FastDDS maps domain ids to UDP ports; 0..232 is the valid range.  We stay clear of 0 (the
 # default everyone uses) and of the low ids people pick by hand.

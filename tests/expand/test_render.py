@@ -9,7 +9,7 @@ from pathlib import Path
 import yaml
 
 from fleet.expand import expand_fleet
-from fleet.spec import load_spec, parse_spec
+from fleet.spec import parse_spec
 
 from tests.conftest import FLEETS, run_fleet
 

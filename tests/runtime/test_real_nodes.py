@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import time
 
 import pytest
 
 from fleet.runtime.supervisor import LaunchSession
+from fleet.testing.ros import RosProbe
 
 pytestmark = pytest.mark.integration
 
@@ -39,57 +39,13 @@ PARAMS = """
   ros__parameters:
     capacity: 42.0
 """
-EXPECTED_NODES = {("controller", "/robot1"), ("battery", "/robot1"), ("battery", "/robot2")}
-
-
-class Probe:
-    """An rclpy context of the test's own with one node to look at the graph."""
-
-    def __init__(self):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-
-        self.context = Context()
-        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("runtime_probe", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-
-    def nodes(self) -> set[tuple[str, str]]:
-        return set(self.node.get_node_names_and_namespaces())
-
-    def wait_for_nodes(self, expected: set, timeout: float = 30.0) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if expected <= self.nodes():
-                return
-            self.executor.spin_once(timeout_sec=0.1)
-        raise AssertionError(f"nodes {expected - self.nodes()} not seen; graph: {self.nodes()}")
-
-    def parameters(self, node: str, names: list[str]) -> list:
-        from rcl_interfaces.srv import GetParameters
-        from rclpy.parameter import parameter_value_to_python
-
-        client = self.node.create_client(GetParameters, f"{node}/get_parameters")
-        assert client.wait_for_service(timeout_sec=20), f"{node}/get_parameters not available"
-        future = client.call_async(GetParameters.Request(names=names))
-        self.executor.spin_until_future_complete(future, timeout_sec=20)
-        assert future.done(), f"no answer from {node}/get_parameters"
-        return [parameter_value_to_python(value) for value in future.result().values]
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.context.try_shutdown()
+EXPECTED_NODES = {"/robot1/controller", "/robot1/battery", "/robot2/battery"}
 
 
 @pytest.fixture
 def probe(ros_env):
-    probe = Probe()
-    yield probe
-    probe.close()
+    with RosProbe() as probe:
+        yield probe
 
 
 @pytest.mark.parametrize("isolation", ["process", "robot"])
@@ -110,9 +66,9 @@ def test_namespaced_fleet_nodes_with_parameters(ros_env, probe, tmp_path, isolat
         expected_processes = 3 if isolation == "process" else 1
         assert len({status.pid for status in statuses}) == expected_processes
         # The inline parameter comes after the file, so it wins; the file sets the rest.
-        assert probe.parameters("/robot1/controller", ["max_speed", "goal_tolerance"]) == [1.25, 0.2]
-        assert probe.parameters("/robot1/battery", ["capacity"]) == [42.0]
-        assert probe.parameters("/robot2/battery", ["capacity"]) == [100.0]
+        assert probe.get_parameters("/robot1/controller", ["max_speed", "goal_tolerance"]) == [1.25, 0.2]
+        assert probe.get_parameters("/robot1/battery", ["capacity"]) == [42.0]
+        assert probe.get_parameters("/robot2/battery", ["capacity"]) == [100.0]
     assert {status.state for status in session.status()} == {"stopped"}
     # Stopped by SIGINT, the nodes shut down by themselves (no SIGTERM/SIGKILL needed).
     assert {status.exit_code for status in session.status()} <= {0, -2}

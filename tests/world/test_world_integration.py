@@ -3,7 +3,6 @@ contacts in the status file, robots joining and leaving through world.yaml."""
 
 import json
 import math
-import os
 import signal
 import subprocess
 import sys

@@ -1,0 +1,104 @@
+"""A deploy (or `fleet down`) made while an agent is away completes when the agent comes back,
+with no second deploy: the router keeps each agent's latest desired state and the agent fetches
+it when it connects (and every few seconds)."""
+
+from __future__ import annotations
+
+import signal
+import time
+
+import psutil
+from control_helpers import robot, wait_until
+
+from fleet.control import protocol as p
+from fleet.control.deploy import down
+
+
+def start(cluster) -> None:
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.start_agent("hostB")
+    cluster.wait_agents_online("hostA", "hostB")
+
+
+def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_cluster):
+    cluster = fresh_cluster
+    start(cluster)
+    first = cluster.deploy(cluster.spec())
+    assert first.ok
+    robot1_pids = robot(cluster.view("tiny"), "robot1").pids
+    cluster.kill("agent-hostB", signal.SIGKILL)
+
+    outcome = cluster.deploy(cluster.spec(), sets=["robot2.sleeper.period=2.0"], timeout=5)
+    assert not outcome.ok and set(outcome.unreachable) == {"hostB"}
+
+    cluster.start_agent("hostB")  # restores generation `first`, then fetches the newer one
+
+    def deployed():
+        view = cluster.view("tiny")
+        rows = [row for row in view.robots if row.agent == "hostB"]
+        return len(rows) == 2 and all(r.state == "running" and r.generation == outcome.generation for r in rows)
+
+    assert wait_until(deployed, 20), cluster.log("agent-hostB")
+    params = (cluster.state_dir("hostB") / "units" / "tiny" / "robot2" / "robot2.params.yaml").read_text()
+    assert "period: 2.0" in params
+    assert robot(cluster.view("tiny"), "robot1").pids == robot1_pids  # hostA had nothing left to do
+
+    # An older desired state put later (a slow deployer) changes nothing: the later generation wins.
+    stale = p.ApplyRequest(fleet="tiny", agent="hostB", generation=first.generation, domain_id=cluster.domain_id,
+                           bundles=[])  # fmt: skip
+    with cluster.client() as client:
+        client.put_desired([stale])
+    cluster.kill("agent-hostB", signal.SIGTERM)
+    cluster.start_agent("hostB")
+    assert wait_until(deployed, 20), cluster.log("agent-hostB")
+
+
+def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_cluster):
+    cluster = fresh_cluster
+    start(cluster)
+    assert cluster.deploy(cluster.spec()).ok
+    hostb_pids = set().union(*(row.pids for row in cluster.view("tiny").robots if row.agent == "hostB"))
+    cluster.kill("agent-hostB", signal.SIGKILL)
+    with cluster.client() as client:
+        replies = down(client, "tiny")
+    assert set(replies) == {"hostA"}  # hostB is away: only the router hears of it
+    # The router keeps what it holds across a restart (its state directory).
+    cluster.kill("router", signal.SIGTERM)
+    cluster.start_router()
+    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in hostb_pids), 5)
+
+    cluster.start_agent("hostB")  # restores robot2 and robot3, then fetches the empty desired state
+    cluster.wait_agents_online("hostB")
+    desired = cluster.state_dir("hostB") / "desired" / "tiny.json"
+    assert wait_until(lambda: '"bundles":[]' in desired.read_text(), 20), cluster.log("agent-hostB")
+    units = cluster.state_dir("hostB") / "units" / "tiny"
+    assert wait_until(lambda: not any(units.iterdir()), 10), list(units.iterdir())  # its robots stopped
+    assert not cluster.view("tiny").robots
+
+
+def test_bad_desired_states_are_ignored(fresh_cluster):
+    cluster = fresh_cluster
+    start(cluster)
+    outcome = cluster.deploy(cluster.spec())
+    assert outcome.ok
+    before = cluster.view("tiny")
+    newer = p.ApplyRequest(fleet="tiny", agent="hostA", generation=outcome.generation + 1,
+                           domain_id=cluster.domain_id, bundles=[])  # fmt: skip
+    with cluster.client() as client:
+        client.session.put(p.desired_key("tiny", "hostB"), b"{not json")
+        client.session.put(p.desired_key("tiny", "hostB"), p.encode(newer))  # hostA's, on hostB's key
+        client.session.put(p.desired_key("other", "hostA"), p.encode(newer))  # fleet tiny on fleet other's key
+        # The router refuses a malformed query with an error reply.
+        replies = list(client.session.get(p.desired_key("*", "hostA"), payload=b"[1]", timeout=5))
+        assert len(replies) == 1 and replies[0].err is not None
+    cluster.kill("agent-hostB", signal.SIGTERM)  # and a fresh start fetches at once
+    cluster.start_agent("hostB")
+    cluster.wait_agents_online("hostB")
+    assert wait_until(lambda: len(cluster.view("tiny").robots) == 3, 15)
+    time.sleep(4)  # more than one fetch round
+    after = cluster.view("tiny")
+    assert [(r.name, r.state, r.generation) for r in after.robots] == [
+        (r.name, r.state, r.generation) for r in before.robots
+    ]
+    assert "ignoring desired state" in cluster.log("router")
