@@ -83,15 +83,16 @@ def template_set_for(spec: FleetSpec) -> TemplateSet:
 def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Expansion:
     templates = template_set_for(spec)
     overrides = [parse_override(text) for text in sets]
-    defaults: dict[str, tuple] = {}  # per template, loaded once
+    shared_layers: dict[tuple, ParameterLayers] = {}  # per template and node set
     renderer = LaunchRenderer(templates, spec.fleet)
-    robots = [_plan_robot(spec, index, robot, templates, renderer, defaults) for index, robot in enumerate(spec.robots)]
+    robots = [_plan_robot(spec, index, robot, templates, renderer, shared_layers)
+              for index, robot in enumerate(spec.robots)]
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
     warnings: list[str] = []
     for plan in robots:
         check_type_stable(plan.parameters, plan.name)
-        warnings += plan.parameters.unknown_to_template(defaults[plan.template][0])
+        warnings += plan.parameters.unknown_to_template(plan.parameters.template_defaults)
     bundles = [_robot_bundle(spec, plan) for plan in robots]
     if spec.world is not None:
         bundles.append(_world_bundle(spec, templates))
@@ -99,13 +100,14 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
 
 
 def _plan_robot(spec: FleetSpec, index: int, robot: Robot, templates: TemplateSet, renderer: LaunchRenderer,
-                defaults_cache: dict[str, tuple]) -> RobotPlan:
+                shared_layers: dict[tuple, ParameterLayers]) -> RobotPlan:
     template = robot.template or spec.defaults.template
     namespace = robot.namespace or f"/{robot.name}"
     arguments = {**spec.defaults.launch_args, **robot.launch_args}
+    model = _model_of(spec, robot)
     context = {
         "robot": {"name": robot.name, "namespace": namespace, "agent": robot.agent or spec.defaults.agent,
-                  "model": _model_of(spec, robot).model_dump(), "pose": robot.pose.model_dump()},
+                  "model": model.model_dump(), "pose": robot.pose.model_dump()},
         "fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time},
         "params_file": params_file_reference(robot.name),
     }
@@ -118,19 +120,8 @@ def _plan_robot(spec: FleetSpec, index: int, robot: Robot, templates: TemplateSe
         path = ("robots", index, "launch_args", unknown[0]) if in_robot else ("defaults", "launch_args", unknown[0])
         raise SpecError(f"template {template!r} declares no launch argument {unknown[0]!r} "
                         f"(arguments: {', '.join(shape.arguments) or 'none'})", _spec_location(spec, path))
-    layers = ParameterLayers()
-    if template not in defaults_cache:
-        defaults_cache[template] = _template_defaults(templates, template)
-    defaults, defaults_file, defaults_source = defaults_cache[template]
     node_names = {node.name for node in shape.nodes}
-    for node, values in defaults.items():
-        if node not in node_names:
-            raise TemplateError(f"defaults for node {node!r}, which template {template!r} does not start "
-                                f"(nodes: {', '.join(sorted(node_names))})", Location(defaults_file))
-        layers.add(node, values, "template", lambda key, node=node: str(defaults_source.locate((node,) + key)))
-    for node, values in spec.defaults.parameters.items():
-        if node in node_names:
-            layers.add(node, values, "defaults", lambda key, node=node: spec.where("defaults", "parameters", node, *key))
+    layers = _shared_layers(spec, templates, template, frozenset(node_names), shared_layers).copy()
     for node, values in robot.parameters.items():
         if node not in node_names:
             raise SpecError(f"robot {robot.name}: template {template!r} starts no node {node!r} "
@@ -139,9 +130,31 @@ def _plan_robot(spec: FleetSpec, index: int, robot: Robot, templates: TemplateSe
         layers.add(node, values, "robot", lambda key, node=node: spec.where("robots", index, "parameters", node, *key))
     return RobotPlan(name=robot.name, namespace=namespace, agent=robot.agent or spec.defaults.agent,
                      template=template, isolation=robot.isolation or spec.defaults.isolation,
-                     model=_model_of(spec, robot), pose=robot.pose.model_dump(), outline=shape,
+                     model=model, pose=context["robot"]["pose"], outline=shape,
                      parameters=layers, launch_args={k: str(v) for k, v in arguments.items()},
                      launch_text=rendered.text, launch_python=rendered.python)
+
+
+def _shared_layers(spec: FleetSpec, templates: TemplateSet, template: str, node_names: frozenset[str],
+                   cache: dict) -> ParameterLayers:
+    """The template's defaults and the spec's defaults: the same for every robot of a template,
+    so merged once per template and node set, and copied per robot."""
+    key = (template, node_names)
+    if key in cache:
+        return cache[key]
+    defaults, defaults_file, defaults_source = _template_defaults(templates, template)
+    layers = ParameterLayers()
+    for node, values in defaults.items():
+        if node not in node_names:
+            raise TemplateError(f"defaults for node {node!r}, which template {template!r} does not start "
+                                f"(nodes: {', '.join(sorted(node_names))})", Location(defaults_file))
+        layers.add(node, values, "template", lambda key, node=node: str(defaults_source.locate((node,) + key)))
+    for node, values in spec.defaults.parameters.items():
+        if node in node_names:
+            layers.add(node, values, "defaults", lambda key, node=node: spec.where("defaults", "parameters", node, *key))
+    layers.template_defaults = defaults
+    cache[key] = layers
+    return layers
 
 
 def _spec_location(spec: FleetSpec, path: tuple) -> Location:

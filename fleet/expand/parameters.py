@@ -64,6 +64,13 @@ class ParameterLayers:
 
     def __init__(self) -> None:
         self.history: dict[tuple[str, str], list[Setting]] = {}
+        self.template_defaults: dict[str, dict[str, Any]] = {}  # node -> parameters, for typo warnings
+
+    def copy(self) -> "ParameterLayers":
+        other = ParameterLayers()
+        other.history = {key: list(settings) for key, settings in self.history.items()}
+        other.template_defaults = self.template_defaults
+        return other
 
     def add(self, node: str, parameters: dict[str, Any], layer: str, source: Callable[[tuple], str]) -> None:
         """Add a layer's values; source(key_path) says where each one is written (located lazily:
