@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
@@ -32,30 +32,33 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
 
 
-class Pose(Strict):
-    x: float = 0.0
-    y: float = 0.0
-    yaw: float = 0.0  # radians
+class Measured(Strict):
+    """A model of measurements: `x: 1` is read as 1.0 (strict mode alone would refuse it)."""
+
+    integer_fields: ClassVar[frozenset[str]] = frozenset()
 
     @model_validator(mode="before")
     @classmethod
     def _ints_are_floats(cls, data: Any) -> Any:
-        return _ints_to_floats(data)
+        return _ints_to_floats(data, keep=cls.integer_fields)
 
 
-class Lidar(Strict):
+class Pose(Measured):
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0  # radians
+
+
+class Lidar(Measured):
     beams: int = Field(360, ge=1, le=4096)
     rate: float = Field(10.0, gt=0, le=100)
     range_min: float = Field(0.12, ge=0)
     range_max: float = Field(8.0, gt=0, le=100)
 
-    @model_validator(mode="before")
-    @classmethod
-    def _ints_are_floats(cls, data: Any) -> Any:
-        return _ints_to_floats(data, keep={"beams"})
+    integer_fields: ClassVar[frozenset[str]] = frozenset({"beams"})
 
 
-class Model(Strict):
+class Model(Measured):
     """The simulated body: `light` (planar one-body diff drive, cheap) or a URDF from pybullet_data."""
 
     type: Literal["light", "husky", "racecar"] = "light"
@@ -63,13 +66,8 @@ class Model(Strict):
     max_linear_speed: float = Field(1.0, gt=0, le=20)  # m/s
     max_angular_speed: float = Field(2.5, gt=0, le=50)  # rad/s
 
-    @model_validator(mode="before")
-    @classmethod
-    def _ints_are_floats(cls, data: Any) -> Any:
-        return _ints_to_floats(data)
 
-
-class ModelOverride(Strict):
+class ModelOverride(Measured):
     """A robot's changes to the default model: only the fields it sets."""
 
     type: Literal["light", "husky", "racecar"] | None = None
@@ -77,13 +75,8 @@ class ModelOverride(Strict):
     max_linear_speed: float | None = Field(None, gt=0, le=20)
     max_angular_speed: float | None = Field(None, gt=0, le=50)
 
-    @model_validator(mode="before")
-    @classmethod
-    def _ints_are_floats(cls, data: Any) -> Any:
-        return _ints_to_floats(data)
 
-
-class Obstacle(Strict):
+class Obstacle(Measured):
     name: str
     type: Literal["box", "wall", "cylinder"]
     position: tuple[float, float]  # x, y of the centre, m
@@ -91,11 +84,6 @@ class Obstacle(Strict):
     size: tuple[float, float, float] | None = None  # box/wall: x, y, z extent, m
     radius: float | None = Field(None, gt=0)  # cylinder
     height: float = Field(1.0, gt=0)  # cylinder
-
-    @model_validator(mode="before")
-    @classmethod
-    def _ints_are_floats(cls, data: Any) -> Any:
-        return _ints_to_floats(data)
 
     @model_validator(mode="after")
     def _shape_complete(self) -> "Obstacle":
@@ -114,7 +102,7 @@ class Obstacle(Strict):
         return self
 
 
-class World(Strict):
+class World(Measured):
     agent: str | None = None  # defaults to defaults.agent
     physics_rate: float = Field(240.0, gt=0, le=2000)  # Hz
     real_time: bool = True
@@ -122,11 +110,6 @@ class World(Strict):
     odom_rate: float = Field(50.0, gt=0, le=1000)
     cmd_timeout: float = Field(0.5, gt=0, le=60)
     obstacles: list[Obstacle] = []
-
-    @model_validator(mode="before")
-    @classmethod
-    def _ints_are_floats(cls, data: Any) -> Any:
-        return _ints_to_floats(data)
 
 
 class Ros(Strict):
