@@ -129,9 +129,23 @@ def _bad_payloads(cluster) -> dict[str, bytes]:
     return payloads
 
 
+def _settled_rows(cluster, fleet: str, timeout: float = 30.0):
+    """The robots' (name, pids, generation, state) once every robot runs and two looks 1 s apart agree
+    (a deploy's reply comes before every agent has finished reconciling)."""
+    previous = None
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        rows = [(r.name, r.pids, r.generation, r.state) for r in cluster.view(fleet).robots]
+        if rows == previous and all(state == "running" for *_, state in rows):
+            return rows
+        previous = rows
+        time.sleep(1.0)
+    raise AssertionError(f"fleet {fleet} did not settle: {previous}")
+
+
 def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
     cluster.deploy(cluster.spec())
-    before = cluster.view("tiny")
+    before = _settled_rows(cluster, "tiny")
     with cluster.client() as client:
         for label, payload in _bad_payloads(cluster).items():
             replies = list(client.session.get(p.apply_key("tiny", "hostA"), payload=payload, timeout=10))
@@ -139,10 +153,8 @@ def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
             assert replies[0].err is not None, label
             error = json.loads(replies[0].err.payload.to_bytes())
             assert error["kind"] == "error" and error["error"], label
-    after = cluster.view("tiny")
-    assert [(r.name, r.pids, r.generation, r.state) for r in after.robots] == [
-        (r.name, r.pids, r.generation, r.state) for r in before.robots
-    ]
+    after = [(r.name, r.pids, r.generation, r.state) for r in cluster.view("tiny").robots]
+    assert after == before
     assert not list(cluster.root.rglob("evil.sh"))
     assert cluster.processes["agent-hostA"].poll() is None
 
