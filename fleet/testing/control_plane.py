@@ -46,13 +46,16 @@ class ControlPlane:
         self.processes[key] = process
         return process
 
-    def start_router(self, timeout: float = 20.0) -> None:
-        """Start the router and wait until it answers status queries.  The port was free when
+    def start_router(self, timeout: float = 20.0, zenoh_config: Path | None = None) -> None:
+        """Start the router and wait until it answers status queries (with a Zenoh config, which
+        may demand credentials this side lacks: until its port is open).  The port was free when
         chosen but another process may take it first: then try a new one (only before agents
         are connected to this one)."""
+        ready = self._registry_answers if zenoh_config is None else (lambda: _port_open(self.port))
         for attempt in range(3):
-            process = self._spawn(ROUTER, ["router", "--listen", self.endpoint, "--state-dir", str(self.root / ROUTER)])
-            if _wait(lambda: self._registry_answers() or process.poll() is not None, timeout) and process.poll() is None:
+            args = ["router", "--listen", self.endpoint, "--state-dir", str(self.root / ROUTER)]
+            process = self._spawn(ROUTER, args + _config_args(zenoh_config))
+            if _wait(lambda: ready() or process.poll() is not None, timeout) and process.poll() is None:
                 return
             self.stop_process(ROUTER)
             if any(key != ROUTER for key in self.processes) or attempt == 2:
@@ -60,9 +63,9 @@ class ControlPlane:
             self.port = free_tcp_port()
         raise RuntimeError(f"the fleet router did not start on {self.endpoint}:\n{self.log_tail(ROUTER)}")
 
-    def start_agent(self, name: str) -> None:
+    def start_agent(self, name: str, zenoh_config: Path | None = None) -> None:
         self._spawn(agent_key(name), ["agent", "--name", name, "--connect", self.endpoint,
-                                      "--state-dir", str(self.agent_dir(name))])
+                                      "--state-dir", str(self.agent_dir(name))] + _config_args(zenoh_config))
 
     def kill(self, key: str, signum: int = signal.SIGKILL) -> int:
         """Signal a router or agent process and wait for it to end; returns its pid."""
@@ -141,6 +144,10 @@ class ControlPlane:
                 return bool(client.status("probe", timeout=1.0)[1])
         except ControlError:
             return False
+
+
+def _config_args(zenoh_config: Path | None) -> list[str]:
+    return [] if zenoh_config is None else ["--zenoh-config", str(zenoh_config)]
 
 
 def agent_key(name: str) -> str:

@@ -4,8 +4,6 @@ own ROS domain, own state directories; and a tiny node stand-in so most tests ru
 from __future__ import annotations
 
 import os
-import signal
-import socket
 import subprocess
 import sys
 import time
@@ -13,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from fleet.testing.isolation import free_tcp_port
+from fleet.testing.control_plane import ControlPlane
 
 DATA = Path(__file__).parent / "data"
 REPO = Path(__file__).resolve().parents[2]
@@ -43,82 +41,32 @@ def wait_until(predicate, timeout: float, interval: float = 0.1):
         time.sleep(interval)
 
 
-class Cluster:
-    """Router + agents as subprocesses; every process is stopped by stop()."""
+class Cluster(ControlPlane):
+    """fleet.testing's control plane (router + agents as subprocesses, stopped by stop()), with
+    an ament prefix holding the tiny stand-in node, and the specs and views the tests use."""
 
     def __init__(self, root: Path, domain_id: int, extra_env: dict[str, str] | None = None):
-        self.root = root
+        root.mkdir(parents=True, exist_ok=True)
         self.domain_id = domain_id
-        self.port = free_tcp_port()
-        self.endpoint = f"tcp/127.0.0.1:{self.port}"
-        self.processes: dict[str, subprocess.Popen] = {}
         self.prefix = make_prefix(root / "prefix")
-        self.env = dict(os.environ)
-        self.env["AMENT_PREFIX_PATH"] = str(self.prefix)
-        self.env.pop("FLEET_ZENOH_CONFIG", None)
-        self.env.update(extra_env or {})
+        env = dict(os.environ)
+        env["AMENT_PREFIX_PATH"] = str(self.prefix)
+        env.pop("FLEET_ZENOH_CONFIG", None)
+        env.update(extra_env or {})
+        super().__init__(root, env)
 
-    def _spawn(self, key: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen:
-        log = open(self.root / f"{key}.log", "ab")
-        process = subprocess.Popen([sys.executable, "-m", "fleet", *args], env=env or self.env,
-                                   stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-        log.close()
-        self.processes[key] = process
-        return process
+    def start_router(self, config: Path | None = None) -> None:
+        super().start_router(zenoh_config=config)
 
-    def start_router(self, config: Path | None = None) -> subprocess.Popen:
-        args = ["router", "--listen", self.endpoint, "--state-dir", str(self.root / "router")]
-        if config:
-            args += ["--zenoh-config", str(config)]
-        process = self._spawn("router", args)
-        assert wait_until(lambda: _port_open(self.port) or process.poll() is not None, 10)
-        assert process.poll() is None, self.log("router")
-        if config is None:  # the registry is declared a little after the port opens: wait for it
-            assert wait_until(self._registry_answers, 10), self.log("router")
-        return process
-
-    def _registry_answers(self) -> bool:
-        from fleet.errors import ControlError
-
-        try:
-            with self.client() as client:
-                return bool(client.status("probe")[1])
-        except ControlError:
-            return False
-
-    def start_agent(self, name: str, config: Path | None = None) -> subprocess.Popen:
-        args = ["agent", "--name", name, "--connect", self.endpoint, "--state-dir", str(self.state_dir(name))]
-        if config:
-            args += ["--zenoh-config", str(config)]
-        return self._spawn(f"agent-{name}", args)
+    def start_agent(self, name: str, config: Path | None = None) -> None:
+        super().start_agent(name, zenoh_config=config)
 
     def state_dir(self, agent: str) -> Path:
-        return self.root / "agents" / agent
+        return self.agent_dir(agent)
 
     def log(self, key: str) -> str:
-        path = self.root / f"{key}.log"
+        path = self.log_path(key)
         return path.read_text(errors="replace")[-4000:] if path.exists() else ""
-
-    def kill(self, key: str, signum: int = signal.SIGKILL) -> None:
-        process = self.processes.pop(key)
-        process.send_signal(signum)
-        process.wait(timeout=30)
-
-    def stop(self) -> None:
-        agents = [key for key in self.processes if key != "router"]
-        for key in agents + ["router"]:
-            process = self.processes.get(key)
-            if process is not None and process.poll() is None:
-                process.terminate()
-        for key in agents + ["router"]:
-            process = self.processes.pop(key, None)
-            if process is None:
-                continue
-            try:
-                process.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
 
     # -- specs and clients --
 
@@ -164,11 +112,6 @@ class Cluster:
             return all(any(a.name == n and a.online for a in view.agents) for n in names)
 
         assert wait_until(online, timeout), "\n".join(self.log(f"agent-{n}") for n in names)
-
-
-def _port_open(port: int) -> bool:
-    with socket.socket() as sock:
-        return sock.connect_ex(("127.0.0.1", port)) == 0
 
 
 def robot(view, name: str):
