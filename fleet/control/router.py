@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from fleet.control import protocol as p
-from fleet.control.state import write_atomic
+from fleet.files import write_atomic
 
 log = logging.getLogger("fleet.router")
 
@@ -59,7 +59,7 @@ class Registry:
             "agents": {f: {a: s.model_dump() for a, s in agents.items()} for f, agents in self._agents.items()},
             "desired": {f: {a: r.model_dump() for a, r in agents.items()} for f, agents in self._desired.items()},
         }
-        write_atomic(self.state_file, json.dumps(data).encode())
+        write_atomic(self.state_file, json.dumps(data), durable=True)
 
     # Zenoh callbacks: tiny dictionary updates (and a small file write on a deploy).
 

@@ -12,14 +12,13 @@ either the old or the new desired state, never half of one.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel
 
 from fleet.control.protocol import ApplyRequest
+from fleet.files import write_atomic
 
 
 class FleetState(BaseModel):
@@ -38,25 +37,6 @@ class FleetState(BaseModel):
         return self.request.generation
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(data)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    directory = os.open(path.parent, os.O_RDONLY)
-    try:
-        os.fsync(directory)
-    finally:
-        os.close(directory)
-
-
 class AgentStore:
     def __init__(self, root: Path, agent: str):
         self.root = root
@@ -73,7 +53,7 @@ class AgentStore:
             if owner != self.agent:
                 raise RuntimeError(f"state directory {self.root} belongs to agent {owner!r}, not {self.agent!r}")
         else:
-            write_atomic(marker, json.dumps({"name": self.agent}).encode())
+            write_atomic(marker, json.dumps({"name": self.agent}), durable=True)
 
     def load(self) -> tuple[dict[str, FleetState], list[str]]:
         """Every fleet's desired state; unreadable files are reported, not fatal."""
@@ -91,7 +71,7 @@ class AgentStore:
         return fleets, problems
 
     def save(self, state: FleetState) -> None:
-        write_atomic(self.desired_dir / f"{state.fleet}.json", state.model_dump_json().encode())
+        write_atomic(self.desired_dir / f"{state.fleet}.json", state.model_dump_json(), durable=True)
 
     def unit_dir(self, fleet: str, robot: str) -> Path:
         return self.units_dir / fleet / robot

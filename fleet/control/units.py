@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from fleet.control.protocol import BundleMessage, NodeState, RobotState, WorldSummary, check_file_name, world_summary
-from fleet.control.state import write_atomic
+from fleet.files import write_atomic
 
 UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
 WORLD_STATUS_FILE = "world.status.json"  # written by the world next to world.yaml (templates/world.launch.yaml.j2)
@@ -53,7 +53,7 @@ class Unit:
             path = self.directory / check_file_name(name)
             if path.resolve().parent != self.directory.resolve():  # defence in depth
                 raise ValueError(f"file {name!r} escapes the unit directory")
-            write_atomic(path, text.encode())
+            write_atomic(path, text, durable=True)
 
     def hot_update(self, bundle: BundleMessage, overrides: dict[str, dict[str, Any]]) -> None:
         """Files such as world.yaml are re-read by the running process: rewrite them in place."""

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import os
 import sys
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 from fleet.errors import LaunchFileError
+from fleet.files import write_atomic
 
 PACKAGE = "fleet_nodes"
 EXECUTABLES = ("controller", "battery", "safety", "world", "composite")
@@ -81,16 +81,7 @@ def _write_if_changed(path: Path, content: str, mode: int) -> None:
             return
     except OSError:
         pass
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, temp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(content)
-        os.chmod(temp_name, mode)
-        os.replace(temp_name, path)
-    except BaseException:
-        Path(temp_name).unlink(missing_ok=True)
-        raise
+    write_atomic(path, content, mode=mode)
 
 
 def ensure_ament_prefix(prefix: Path | None = None) -> Path:

@@ -24,7 +24,7 @@ from fleet.world.description import ObstacleSpec, Pose2D, RobotSpec, WorldError,
 from fleet.world.geometry import obstacle_shape, robot_shape
 from fleet.world.physics import PhysicsWorld, SpawnError
 from fleet.world.status import (CONTACTS_KEPT, SCAN_HITS_MAX, Trail, last_poses, model_dict, obstacle_dict,
-                                read_status, write_atomic)
+                                read_status, write_status)
 
 log = logging.getLogger("fleet.world")
 
@@ -278,7 +278,7 @@ class WorldApp:
 
     def write_status(self) -> None:
         if self.status_file is not None:
-            write_atomic(self.status_file, self.status())
+            write_status(self.status_file, self.status())
 
     def _measure_rtf(self, wall: float) -> None:
         window = self._rtf_window
