@@ -19,6 +19,7 @@ BENCHMARKS = {
     "world": ["bench_world.py"],
     "isolation": ["bench_isolation.py"],
     "control": ["bench_control.py"],
+    "dataplane": ["bench_dataplane.py"],
 }
 
 

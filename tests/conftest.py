@@ -65,10 +65,26 @@ def ros_domain():
 
 
 @pytest.fixture
-def ros_env(ros_domain, monkeypatch):
-    """Environment (also applied to os.environ) confining ROS traffic to this test's domain."""
-    env = ros_environment(ros_domain)
-    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS"):
+def ros_env(ros_domain, monkeypatch, tmp_path_factory):
+    """Environment (also applied to os.environ) of this test's own ROS domain, whose participants
+    find each other through a discovery server of the test's own, as a deployed fleet's do.
+
+    Why a server here too: Fast DDS keeps the discovery server a process first saw in
+    ROS_DISCOVERY_SERVER for its later participants even once the variable is gone (measured),
+    so in a test process where a fleet test made a discovery client, a later LOCALHOST
+    participant would look for that server and find nobody."""
+    from fleet.dataplane.discovery import DiscoveryServer
+    from fleet.runtime.environment import discovery_server_port
+
+    server = DiscoveryServer(f"127.0.0.1:{discovery_server_port(ros_domain)}", ros_environment(ros_domain),
+                             tmp_path_factory.mktemp("discovery") / "server.log")  # fmt: skip
+    server.keep_running()
+    env = ros_environment(ros_domain, discovery_server=server.server)
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS",
+                "ROS_DISCOVERY_SERVER"):
         monkeypatch.setenv(key, env[key])
     monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
-    return env
+    try:
+        yield env
+    finally:
+        server.stop()

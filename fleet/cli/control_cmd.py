@@ -106,6 +106,8 @@ def agent(
     connect: Optional[str] = ConnectOption,
     state_dir: Optional[Path] = typer.Option(None, "--state-dir", help="Desired state and units (default: <state dir>/agents/NAME)."),
     zenoh_config: Optional[Path] = ZenohConfigOption,
+    address: Optional[str] = typer.Option(
+        None, "--address", help="IPv4 address other computers reach this one at (default: the one on the route to the router)."),
 ) -> None:
     """Run an agent (foreground): receives desired state, runs the robots, reports status."""
     from fleet.control.agent import Agent
@@ -114,7 +116,7 @@ def agent(
     _logging()
     directory = state_dir or default_state_dir() / "agents" / name
     try:
-        daemon = Agent(name, _endpoints(connect), directory, _zenoh_config(zenoh_config))
+        daemon = Agent(name, _endpoints(connect), directory, _zenoh_config(zenoh_config), address)
     except ValueError as error:
         from fleet.errors import FleetError
 
@@ -282,6 +284,8 @@ def _outcome_json(outcome) -> dict:
         "nothing_changed": outcome.nothing_changed,
         "superseded_by": outcome.superseded_by,
         "timed_out": outcome.timed_out,
+        "discovery": None if outcome.discovery is None else {
+            "host": outcome.discovery.host, "server": outcome.discovery.server, "note": outcome.discovery.note},
         "agents": replies,
         "status": outcome.view.to_json() if outcome.view else None,
     }
@@ -307,8 +311,12 @@ def _print_outcome(outcome, out) -> None:
         out.print(f"[yellow]superseded:[/yellow] a later deploy (generation {outcome.superseded_by}) won")
     if outcome.view is not None:
         _print_view(outcome.view, out, agents=False)
+    if outcome.discovery is not None and outcome.discovery.note:
+        out.print(f"[yellow]note:[/yellow] {outcome.discovery.note}")
     if outcome.timed_out:
-        out.print("[red]timed out[/red] waiting for every robot to run")
+        stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
+        out.print(f"[red]timed out[/red] waiting for every robot to run; not running: "
+                  + "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck))
     elif outcome.ok:
         out.print("[green]fleet up[/green]")
 
@@ -397,15 +405,20 @@ def _view_tables(view, agents: bool = True):
 
     tables = []
     if agents:
-        table = make_table("agent", "state", "last seen", "host", "cores", "backends", "fleets", title="Agents")
+        table = make_table("agent", "state", "last seen", "host", "address", "cores", "backends", "fleets",
+                           title="Agents")  # fmt: skip
         for row in view.agents:
             state = "[green]online[/green]" if row.online else "[red]offline[/red]"
             seen = "now" if row.online else (_ago(row.last_seen) if row.last_seen is not None else "never")
-            table.add_row(row.name, state, seen, row.hostname, str(row.cores or ""), ", ".join(row.backends),
-                          ", ".join(row.fleets))  # fmt: skip
+            table.add_row(row.name, state, seen, row.hostname, row.address, str(row.cores or ""),
+                          ", ".join(row.backends), ", ".join(row.fleets))  # fmt: skip
         tables.append(table)
     several_fleets = len({row.fleet for row in view.robots}) > 1
     columns = ["robot", "agent", "state", "nodes", "restarts", "deployed", "pose x,y,yaw", "battery"]
+    # Why a robot is not running, where one is not: the column only when there is something to say.
+    reasons = any(row.reason and not row.error for row in view.robots)
+    if reasons:
+        columns.append("reason")
     table = make_table(*(["fleet"] + columns if several_fleets else columns), title="Robots")
     colours = {"running": "green", "starting": "yellow", "pending": "yellow", "degraded": "yellow"}
     for row in view.robots:
@@ -415,6 +428,8 @@ def _view_tables(view, agents: bool = True):
         state = f"[{colour}]{row.state}[/{colour}]" + (" (live overrides)" if row.overrides else "")
         cells = [row.name, row.agent, state, f"{row.running}/{row.total}", str(row.restarts),
                  _generation_time(row.generation), pose, battery]
+        if reasons:
+            cells.append("" if row.error else row.reason)
         table.add_row(*([row.fleet] + cells if several_fleets else cells))
     tables.append(table)
     for world in view.worlds:

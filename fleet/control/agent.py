@@ -4,7 +4,9 @@ Threads, and why:
 - Zenoh callbacks only hand the query to a small pool (`_requests`): a slow callback stalls the
   whole session.  Pool threads decode, validate, persist and reply.
 - One reconcile thread starts and stops units, so applies are carried out one at a time and in
-  order.  (Node processes die with the agent, even on SIGKILL: the runner's session threads
+  order.
+- One discovery thread runs the DDS discovery server of each fleet that names this agent its
+  host (fleet.dataplane.discovery), restarting it if it dies.  (Node processes die with the agent, even on SIGKILL: the runner's session threads
   fork them with PR_SET_PDEATHSIG.  Leftovers of anything else are found by their environment
   marker when the agent starts again.)
 - The main thread owns the Zenoh session: it opens it (retrying while no router answers; robots
@@ -44,10 +46,16 @@ DESIRED_TIMEOUT = 5.0
 
 
 class Agent:
-    def __init__(self, name: str, connect: list[str], state_dir: Path, zenoh_config: Path | None = None):
+    def __init__(self, name: str, connect: list[str], state_dir: Path, zenoh_config: Path | None = None,
+                 address: str | None = None):
+        from fleet.dataplane.discovery import address_towards
+
         problem = p.key_name_problem(name)
         if problem:
             raise ValueError(f"agent name {problem}")
+        problem = p.address_problem(address) if address else None
+        if problem:
+            raise ValueError(f"--address: {problem}")
         self.name = name
         self.connect = connect
         self.zenoh_config = Path(zenoh_config).resolve() if zenoh_config else None
@@ -61,12 +69,14 @@ class Agent:
             pid=os.getpid(),
             version=__version__,
             started_at=time.time(),
+            address=address or address_towards(connect),
         )
         self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens
         self._fleets: dict[str, FleetState] = {}
         self._units: dict[tuple[str, str], Unit] = {}
         self._reconciled: dict[str, int] = {}
         self._tokens: dict[str, Any] = {}
+        self._discovery: dict[str, Any] = {}  # fleet -> DiscoveryServer run here (discovery thread)
         self._work: queue.Queue[str | None] = queue.Queue()
         self._requests = ThreadPoolExecutor(max_workers=4, thread_name_prefix="fleet-agent-req")
         # Parameter calls take seconds (an rclpy helper process): their own pool, so status and
@@ -88,6 +98,8 @@ class Agent:
         self._restore()
         worker = threading.Thread(target=self._reconcile_loop, name="fleet-agent-reconcile")
         worker.start()
+        discovery = threading.Thread(target=self._discovery_loop, name="fleet-agent-discovery")
+        discovery.start()
         try:
             self._session = open_client_retrying(self.connect, self.zenoh_config, AGENT_LEASE_MS, self.stop_event)
             if self._session is not None:
@@ -110,6 +122,7 @@ class Agent:
             self._slow_requests.shutdown(wait=True, cancel_futures=True)
             self._work.put(None)
             worker.join()
+            discovery.join()
 
     def _restore(self) -> None:
         fleets, problems = self.store.load()
@@ -295,11 +308,12 @@ class Agent:
             units = {name: unit for (f, name), unit in self._units.items() if f == fleet}
             overrides = {robot: dict(values) for robot, values in state.overrides.items()}
             generation = state.generation
-            domain_id = state.request.domain_id
+            env = self._unit_env(state.request.domain_id, state.request.discovery_server)
+        # A unit whose environment is not this one (the fleet's discovery server moved) restarts.
         changes = plan_changes(
             {name: unit.bundle for name, unit in units.items()},
             desired,
-            {name for name, unit in units.items() if unit.error or unit.session is None},
+            {name for name, unit in units.items() if unit.error or unit.session is None or unit.env != env},
         )
         # Stop first (in parallel: each stop may wait seconds for a node to exit), then start.
         leaving = [units[name] for name in changes.stop + changes.restart]
@@ -312,7 +326,7 @@ class Agent:
             for name in changes.stop:
                 self._units.pop((fleet, name), None)
         for name in changes.start + changes.restart:
-            unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), self._unit_env(domain_id))
+            unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), env)
             unit.generation = generation
             with self._lock:
                 self._units[(fleet, name)] = unit
@@ -328,12 +342,51 @@ class Agent:
         for name in changes.stop:
             shutil.rmtree(self.store.unit_dir(fleet, name), ignore_errors=True)
 
-    def _unit_env(self, domain_id: int) -> dict[str, str]:
+    def _unit_env(self, domain_id: int, discovery_server: str | None) -> dict[str, str]:
         from fleet.runtime.environment import ros_environment
 
-        env = ros_environment(domain_id)
+        env = ros_environment(domain_id, discovery_server=discovery_server)
         env[UNIT_MARKER] = str(self.store.root)
         return env
+
+    # -- discovery servers ----------------------------------------------------------------------
+
+    def _discovery_loop(self) -> None:
+        """Run the discovery server of every fleet hosted here; stop those no longer wanted."""
+        from fleet.dataplane.discovery import DiscoveryServer
+
+        servers: dict[str, DiscoveryServer] = self._discovery  # replaced only under the lock
+        try:
+            while not self.stop_event.is_set():
+                with self._lock:
+                    wanted = {
+                        fleet: state.request for fleet, state in self._fleets.items()
+                        if state.request.bundles and state.request.discovery_server
+                        and state.request.discovery_host == self.name
+                    }  # fmt: skip
+                for fleet in list(servers):
+                    request = wanted.get(fleet)
+                    if request is None or request.discovery_server != servers[fleet].server:
+                        with self._lock:
+                            server = servers.pop(fleet)
+                        server.stop()
+                for fleet, request in wanted.items():
+                    if fleet not in servers:
+                        env = self._unit_env(request.domain_id, None)
+                        with self._lock:
+                            servers[fleet] = DiscoveryServer(request.discovery_server, env,
+                                                             self.store.root / "discovery" / f"{fleet}.log")
+                    try:
+                        servers[fleet].keep_running()
+                    except OSError as error:
+                        log.error("cannot run the discovery server of fleet %s: %s", fleet, error)
+                self.stop_event.wait(0.5)
+        finally:
+            with self._lock:
+                stopping = list(servers.values())
+                servers.clear()
+            for server in stopping:
+                server.stop()
 
     def _stop_all_units(self) -> None:
         with self._lock:
@@ -367,12 +420,15 @@ class Agent:
             )
             reconciled = self._reconciled.get(fleet, 0) if fleet else 0
             overrides = dict(state.overrides) if state else {}
+            discovery = self._discovery.get(fleet) if fleet else None
         reply = p.StatusReply(agent=self.info, fleet=fleet, time=time.time())
         if state is None:
             return reply
         reply.generation = state.generation
         reply.reconciled_generation = reconciled
         reply.domain_id = state.request.domain_id
+        if discovery is not None:
+            reply.discovery_server, reply.discovery_pid = discovery.server, discovery.pid
         seen = set()
         for name, unit in units:
             reply.robots.append(unit.state(overrides.get(name, {})))

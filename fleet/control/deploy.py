@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from fleet.control import protocol as p
 from fleet.control.client import ControlClient
 from fleet.control.view import FleetView, RobotRow, build_view
+from fleet.dataplane.discovery import DiscoveryPlan, plan_discovery
 from fleet.errors import ControlError
 
 POLL_INTERVAL = 0.1
@@ -23,9 +24,10 @@ def new_generation() -> int:
     return time.time_ns()
 
 
-def requests_for(expansion, generation: int, serving: set[str]) -> list[p.ApplyRequest]:
+def requests_for(expansion, generation: int, serving: set[str], discovery: DiscoveryPlan | None = None) -> list[p.ApplyRequest]:
     """A complete desired state for every agent with bundles, and an empty one for agents that
-    run this fleet now but get nothing from this spec (so they stop its robots)."""
+    run this fleet now but get nothing from this spec (so they stop its robots).  `discovery`
+    says where the fleet's DDS discovery server runs (None: nowhere, nodes stay on their computer)."""
     by_agent: dict[str, list] = {}
     for bundle in expansion.bundles:
         by_agent.setdefault(bundle.agent, []).append(p.BundleMessage.from_bundle(bundle))
@@ -36,6 +38,7 @@ def requests_for(expansion, generation: int, serving: set[str]) -> list[p.ApplyR
         p.ApplyRequest(
             fleet=expansion.fleet, agent=agent, generation=generation, domain_id=expansion.domain_id,
             bundles=bundles, sent_at=now,
+            discovery_server=discovery.server if discovery else None, discovery_host=discovery.host if discovery else None,
         )  # fmt: skip
         for agent, bundles in sorted(by_agent.items())
     ]
@@ -52,6 +55,14 @@ def with_planned_agents(requests: list[p.ApplyRequest], registries: list[p.Regis
                        sent_at=time.time())  # fmt: skip
         for agent in missing
     ]
+
+
+def discovery_for(expansion, view: FleetView) -> DiscoveryPlan:
+    """Where the fleet's discovery server runs, from the agents online in `view` (pure)."""
+    world = [bundle.agent for bundle in expansion.bundles if bundle.kind == "world"]
+    addresses = {agent.name: agent.address for agent in view.agents if agent.online and agent.address}
+    agents = sorted({bundle.agent for bundle in expansion.bundles})
+    return plan_discovery(world[0] if world else None, agents, addresses, expansion.domain_id)
 
 
 def plan_record(expansion, generation: int) -> p.PlanRecord:
@@ -112,6 +123,7 @@ class Outcome:
     view: FleetView | None = None
     superseded_by: int | None = None
     timed_out: bool = False
+    discovery: DiscoveryPlan | None = None
 
     @property
     def unreachable(self) -> dict[str, str]:
@@ -145,8 +157,8 @@ def deploy(
 ) -> Outcome:
     statuses, registries = client.status(expansion.fleet)
     before = build_view(statuses, registries, time.time())
-    outcome = Outcome(generation=new_generation())
-    requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet))
+    outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before))
+    requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
     outcome.replies = client.send_applies(requests)
     # After the applies (an agent that took its apply directly then holds this generation already):
     # the router keeps each desired state for agents that were away, and the plan for status.
@@ -161,7 +173,7 @@ def deploy(
     while True:
         statuses, registries = client.status(expansion.fleet)
         view = build_view(statuses, registries, time.time())
-        outcome.view = _only_fleet(view, expansion)
+        outcome.view = view.only(expansion.fleet)
         for (fleet, _agent), generation in view.generations.items():
             if generation > outcome.generation:
                 outcome.superseded_by = max(outcome.superseded_by or 0, generation)
@@ -176,12 +188,6 @@ def deploy(
             break
         time.sleep(POLL_INTERVAL)
     return outcome
-
-
-def _only_fleet(view: FleetView, expansion) -> FleetView:
-    robots = [row for row in view.robots if row.fleet == expansion.fleet]
-    worlds = [world for world in view.worlds if world.fleet == expansion.fleet]
-    return FleetView(view.agents, robots, view.generations, view.domain_ids, worlds)
 
 
 def _settled(view: FleetView, wanted: set[str], generation: int) -> bool:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 
 SERVICE_TIMEOUT = 20.0
 
@@ -53,17 +54,41 @@ def _coerce(value, current_type: int):
     return value
 
 
+RESEND_PERIOD = 2.0  # s: a request unanswered this long is sent again (see call_service)
+
+
+def call_service(client, request, spin_until, timeout: float):
+    """Send `request` and wait for the answer; resend it every RESEND_PERIOD until `timeout`.
+    Returns the response, or None when none came.
+
+    Why resend: right after a node restarts, the service looks available because its previous
+    process is still in the DDS graph until its lease runs out (seen: a restarted node's
+    get_parameters went unanswered for 20 s while a second call, moments later, was answered).
+    A request written before the new server has matched us is lost (services are volatile);
+    the same request sent again once it has is answered.  Parameter gets and sets are
+    idempotent, so a duplicate answer does no harm."""
+    deadline = time.monotonic() + timeout
+    while True:
+        future = client.call_async(request)
+        spin_until(future, max(0.0, min(RESEND_PERIOD, deadline - time.monotonic())))
+        if future.done():
+            return future.result()
+        client.remove_pending_request(future)
+        if time.monotonic() >= deadline:
+            return None
+
+
 def _call(node, service_type, name: str, request):
     import rclpy
 
     client = node.create_client(service_type, name)
     if not client.wait_for_service(timeout_sec=SERVICE_TIMEOUT):
         raise TimeoutError(f"service {name} is not available (is the node running?)")
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=SERVICE_TIMEOUT)
-    if not future.done():
+    spin = lambda future, seconds: rclpy.spin_until_future_complete(node, future, timeout_sec=seconds)  # noqa: E731
+    response = call_service(client, request, spin, SERVICE_TIMEOUT)
+    if response is None:
         raise TimeoutError(f"no answer from {name}")
-    return future.result()
+    return response
 
 
 def main(argv: list[str]) -> int:

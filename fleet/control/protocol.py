@@ -25,6 +25,7 @@ deployed to it, and learns that it serves a fleet from the first apply it accept
 from __future__ import annotations
 
 import hashlib
+import ipaddress
 import json
 import re
 from typing import Any, Literal
@@ -46,6 +47,22 @@ _ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 # Fleet and agent names: the rule of fleet.spec.names.key_name_problem, repeated here so that
 # `fleet status` need not import the spec package (start-up time); a test checks they agree.
 _KEY_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,62}")
+
+
+def address_problem(address: object) -> str | None:
+    """None when `address` is an IPv4 address (what an agent reports and DDS listens on)."""
+    try:
+        ipaddress.IPv4Address(address)  # type: ignore[arg-type]
+    except (ipaddress.AddressValueError, ValueError, TypeError):
+        return f"{address!r} is not an IPv4 address (such as 10.0.0.5)"
+    return None
+
+
+def address_port_problem(value: str) -> str | None:
+    address, _, port = value.rpartition(":")
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        return f"{value!r} is not address:port (such as 10.0.0.5:11811)"
+    return address_problem(address)
 
 
 class ProtocolError(ValueError):
@@ -229,11 +246,27 @@ class ApplyRequest(Message):
     domain_id: int = Field(ge=0, le=232)
     bundles: list[BundleMessage] = Field(max_length=MAX_BUNDLES)
     sent_at: float = 0.0
+    # The fleet's DDS discovery server ("address:port") and the agent that runs it; None: the
+    # fleet's ROS traffic stays on each agent's computer (no agent could host a server).
+    discovery_server: str | None = None
+    discovery_host: str | None = None
 
     @field_validator("fleet", "agent")
     @classmethod
     def _names_are_key_chunks(cls, value: str) -> str:
         return _check_key_name(value)
+
+    @field_validator("discovery_host")
+    @classmethod
+    def _host_is_key_chunk(cls, value: str | None) -> str | None:
+        return None if value is None else _check_key_name(value)
+
+    @field_validator("discovery_server")
+    @classmethod
+    def _server_is_address_and_port(cls, value: str | None) -> str | None:
+        if value is not None and address_port_problem(value):
+            raise ValueError(address_port_problem(value))
+        return value
 
     @model_validator(mode="after")
     def _unique_bundle_names(self) -> "ApplyRequest":
@@ -310,6 +343,7 @@ class AgentInfo(BaseModel):
     pid: int
     version: str
     started_at: float
+    address: str = ""  # where other computers reach this one (fleet agent --address)
 
 
 # The world's state, as its process writes it to its status file (fleet/world/status.py describes
@@ -354,6 +388,10 @@ class WorldRobot(WorldData):
     pose: Pose
     velocity: Velocity | None = None
     battery: float | None = None  # fraction 0..1, None when no battery reports
+    # Data flow as the world sees it: seconds since its last cmd_vel from the robot (None: never),
+    # and how many subscriptions its odom publisher has matched (the robot's nodes, tools).
+    cmd_age: float | None = None
+    odom_subscribers: int | None = None
 
 
 class WorldSummary(WorldData):
@@ -361,6 +399,7 @@ class WorldSummary(WorldData):
 
     sim_time: float = 0.0
     real_time_factor: float = 0.0
+    age: float | None = None  # seconds since the world wrote this (set by its agent, same clock)
     robots: dict[str, WorldRobot] = {}
     contacts: Contacts = Contacts()
     errors: list[WorldProblem] = []
@@ -436,6 +475,10 @@ class StatusReply(Message):
     generation: int = 0  # desired (accepted) generation
     reconciled_generation: int = 0  # the generation the units have been brought to
     domain_id: int | None = None
+    # The fleet's DDS discovery server when this agent runs it: "address:port", and its pid
+    # (None while it is not running).
+    discovery_server: str | None = None
+    discovery_pid: int | None = None
     robots: list[RobotState] = []
     world: WorldSummary | None = None  # when this agent runs the fleet's world and it has reported
     time: float

@@ -157,9 +157,13 @@ class Unit:
         if data is None:
             return None
         try:
-            return world_summary(data)
+            summary = world_summary(data)
         except ValueError:
             return None
+        wall_time = data.get("wall_time")
+        if isinstance(wall_time, (int, float)):  # written on this computer: same clock
+            summary.age = round(max(0.0, time.time() - wall_time), 2)
+        return summary
 
     def node_fqn(self, node: str) -> str | None:
         for state in self.node_states():

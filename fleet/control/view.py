@@ -5,6 +5,12 @@ are offline, with the time they were last seen; their robots come from the last 
 record and show as `offline`.  Robots in the plan whose (online) agent does not run them yet
 are `pending`.  The world's summary (from the agent running it) gives robot rows their pose,
 velocity and battery, and each fleet with a world one WorldRow (sim time, RTF, contacts, errors).
+
+A robot whose processes all run is `running` only when its data flows (judge_data_flow): in a
+fleet with a world, the world must be advancing (it publishes /clock), must have had a cmd_vel
+from the robot lately (its controller runs on /clock, so that also says /clock reaches it), and
+the robot's odom must have a subscriber.  Otherwise it is `degraded` (or still `starting`, for
+a short while after its nodes started) with the reason in words.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ class AgentRow:
     cores: int = 0
     backends: list[str] = field(default_factory=list)
     fleets: list[str] = field(default_factory=list)
+    address: str = ""
 
 
 @dataclass
@@ -44,6 +51,7 @@ class RobotRow:
     battery: float | None = None
     overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
     error: str = ""
+    reason: str = ""  # why the state is not `running`, in words
     nodes: list[dict[str, Any]] = field(default_factory=list)  # name, fqn, state, pid, restarts, ...
 
     @property
@@ -62,6 +70,7 @@ class WorldRow:
     robots: int  # robots spawned in the world
     contacts: dict[str, Any]  # {"count", "last": [{"sim_time", "a", "b", "kind"}]}
     errors: list[dict[str, Any]]  # [{"sim_time", "message"}]: the world's current problems
+    age: float | None = None  # seconds since the world last reported
 
 
 @dataclass
@@ -71,10 +80,22 @@ class FleetView:
     generations: dict[tuple[str, str], int] = field(default_factory=dict)  # (fleet, agent) -> accepted
     domain_ids: dict[str, int] = field(default_factory=dict)
     worlds: list[WorldRow] = field(default_factory=list)  # one per fleet whose world reported
+    # fleet -> {"agent", "server" ("address:port"), "pid" (None: not running)}
+    discovery: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def all_running(self) -> bool:
         return all(robot.state == "running" for robot in self.robots)
+
+    def only(self, fleet: str) -> "FleetView":
+        """This view cut down to one fleet (every agent kept)."""
+        return FleetView(
+            agents=self.agents, robots=self.robots_of(fleet),
+            generations={key: g for key, g in self.generations.items() if key[0] == fleet},
+            domain_ids={f: d for f, d in self.domain_ids.items() if f == fleet},
+            worlds=[world for world in self.worlds if world.fleet == fleet],
+            discovery={f: d for f, d in self.discovery.items() if f == fleet},
+        )  # fmt: skip
 
     def robots_of(self, fleet: str) -> list[RobotRow]:
         return [robot for robot in self.robots if robot.fleet == fleet]
@@ -90,6 +111,7 @@ class FleetView:
             "agents": [asdict(agent) for agent in self.agents],
             "robots": [asdict(robot) for robot in self.robots],
             "worlds": [asdict(world) for world in self.worlds],
+            "discovery": self.discovery,
             "all_running": self.all_running,
         }
 
@@ -100,12 +122,13 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     generations: dict[tuple[str, str], int] = {}
     domain_ids: dict[str, int] = {}
     worlds: dict[str, tuple[str, p.WorldSummary]] = {}  # fleet -> (agent, summary)
+    discovery: dict[str, dict[str, Any]] = {}
 
     for status in statuses:
         info = status.agent
         row = agents.setdefault(
             info.name,
-            AgentRow(info.name, True, 0.0, info.hostname, info.cores, list(info.backends)),
+            AgentRow(info.name, True, 0.0, info.hostname, info.cores, list(info.backends), address=info.address),
         )
         if status.fleet is None:
             continue
@@ -116,6 +139,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             domain_ids[status.fleet] = status.domain_id
         if status.world is not None:
             worlds[status.fleet] = (info.name, status.world)
+        if status.discovery_server:
+            discovery[status.fleet] = {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid}
         for robot in status.robots:
             robots[(status.fleet, robot.name)] = RobotRow(
                 fleet=status.fleet, name=robot.name, kind=robot.kind, agent=info.name, state=robot.state,
@@ -139,7 +164,11 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 agents[agent] = AgentRow(agent, False, None, fleets=[registry.fleet])
             state = "pending" if agents[agent].online else "offline"
             kind = "world" if robot == "world" else "robot"
-            robots[(registry.fleet, robot)] = RobotRow(registry.fleet, robot, kind, agent, state)
+            row = RobotRow(registry.fleet, robot, kind, agent, state)
+            if state == "offline":
+                seen = agents[agent].last_seen
+                row.reason = f"agent {agent} does not answer" + ("" if seen is None else f" (last seen {seen:.0f} s ago)")
+            robots[(registry.fleet, robot)] = row
 
     for (fleet, name), row in robots.items():
         world_robot = worlds[fleet][1].robots.get(name) if fleet in worlds else None
@@ -147,11 +176,19 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             row.pose = world_robot.pose.model_dump()
             row.velocity = world_robot.velocity.model_dump() if world_robot.velocity else None
             row.battery = world_robot.battery
+    for (fleet, _), row in robots.items():
+        if not row.reason and row.error:
+            row.reason = row.error
+    for fleet in {fleet for fleet, _ in robots}:
+        world_row = robots.get((fleet, "world"))
+        if world_row is not None and world_row.kind == "world":
+            summary = worlds[fleet][1] if fleet in worlds else None
+            judge_data_flow([row for (f, _), row in robots.items() if f == fleet], world_row, summary)
 
     world_rows = [
         WorldRow(fleet=fleet, agent=agent, sim_time=world.sim_time, real_time_factor=world.real_time_factor,
                  robots=len(world.robots), contacts=world.contacts.model_dump(),
-                 errors=[problem.model_dump() for problem in world.errors])
+                 errors=[problem.model_dump() for problem in world.errors], age=world.age)
         for fleet, (agent, world) in sorted(worlds.items())
     ]  # fmt: skip
     return FleetView(
@@ -160,7 +197,60 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         generations=generations,
         domain_ids=domain_ids,
         worlds=world_rows,
+        discovery=discovery,
     )
+
+
+WORLD_SILENT = 3.0  # s without a report from the world: it is not advancing (frozen, stopped)
+NO_COMMANDS = 5.0  # s without a cmd_vel from a robot at the world: its data does not flow
+STARTUP_GRACE = 20.0  # s after a robot's nodes started in which missing data means `starting`
+
+
+def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSummary | None) -> None:
+    """Turn `running` rows of one fleet into `degraded` (or `starting`) where data does not flow.
+
+    `world` is the fleet's world row, `summary` what its agent last reported of it (None: no
+    report).  Pure: only the rows' state and reason change."""
+    world_problem = None
+    if world.state != "running":
+        world_problem = f"the world is {world.state}" + (f" ({world.reason})" if world.reason else "")
+    elif summary is None:
+        world_problem = "the world has not reported yet"
+    elif summary.age is not None and summary.age > WORLD_SILENT:
+        world_problem = f"no /clock from the world for {summary.age:.0f} s (world not advancing)"
+        world.state, world.reason = "degraded", f"not advancing: no report for {summary.age:.0f} s (frozen or stuck?)"
+    if world.state == "running" and summary is None and _young(world):
+        world.state, world.reason = "starting", "waiting for the world's first report"
+    for row in rows:
+        if row.kind != "robot" or row.state != "running":
+            continue
+        problem = world_problem or _robot_flow_problem(row, summary)
+        if problem is None:
+            continue
+        if _young(row):
+            row.state, row.reason = "starting", f"waiting for data: {problem}"
+        else:
+            row.state, row.reason = "degraded", problem
+
+
+def _robot_flow_problem(row: RobotRow, summary: p.WorldSummary) -> str | None:
+    robot = summary.robots.get(row.name)
+    if robot is None:
+        refused = [e.message for e in summary.errors if f"'{row.name}'" in e.message]
+        return refused[0] if refused else "not in the world"
+    if robot.cmd_age is None:
+        return "no cmd_vel from it has reached the world yet"
+    if robot.cmd_age > NO_COMMANDS:
+        return f"no cmd_vel from it has reached the world for {robot.cmd_age:.0f} s"
+    if robot.odom_subscribers == 0:
+        return "none of its nodes receives the world's odom"
+    return None
+
+
+def _young(row: RobotRow) -> bool:
+    uptimes = [node.get("uptime") for node in row.nodes]
+    known = [u for u in uptimes if isinstance(u, (int, float))]
+    return bool(known) and min(known) < STARTUP_GRACE
 
 
 def locate_world(view: FleetView, fleet: str | None = None) -> tuple[str, str]:

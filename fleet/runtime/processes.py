@@ -24,7 +24,7 @@ _prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
 _prctl.restype = ctypes.c_int
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
     _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     # The supervisor may have died between fork and prctl: then we were re-parented already.
     if os.getppid() == 1:
@@ -41,7 +41,7 @@ def spawn(cmd: Sequence[str], env: Mapping[str, str], cwd: str | None = None) ->
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         start_new_session=True,
-        preexec_fn=_die_with_parent,
+        preexec_fn=die_with_parent,
         close_fds=True,
     )
 

@@ -83,6 +83,7 @@ class FleetHandle:
             raise
         self.generation = 0
         self._probe = None
+        self.discovery_server: str | None = None  # "address:port" of the fleet's, once deployed
         self._closed = False
         self._started_agents: set[str] = set()  # ever started, killed ones included
 
@@ -164,6 +165,8 @@ class FleetHandle:
         with self.control.client() as client:
             outcome = deploy(client, self.expansion, wait=True, timeout=timeout)
         self.generation = outcome.generation
+        if outcome.discovery is not None and outcome.discovery.server:
+            self.discovery_server = outcome.discovery.server
         if check and not outcome.ok:
             raise AssertionError(f"deploy of fleet {self.name} failed: {_outcome_problem(outcome)}\n" + self.report_text())
         return outcome
@@ -181,11 +184,11 @@ class FleetHandle:
 
     def status(self):
         """This fleet's part of `fleet status` (a fleet.control.view.FleetView)."""
-        from fleet.control.view import FleetView, build_view
+        from fleet.control.view import build_view
 
         with self.control.client() as client:
             view = build_view(*client.status(self.name), time.time())
-        return FleetView(view.agents, view.robots_of(self.name), view.generations, view.domain_ids)
+        return view.only(self.name)
 
     def robot_status(self, robot: str):
         """The status row (fleet.control.view.RobotRow) of a robot, or of `world`."""
@@ -308,10 +311,9 @@ class FleetHandle:
         if self._probe is None:
             from fleet.testing.ros import RosProbe
 
-            # rmw reads these when the context starts; the fleet's nodes run with the same.
-            os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-            os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
-            self._probe = RosProbe(f"fleet_test_{uuid.uuid4().hex[:8]}", domain_id=self.domain_id)
+            # A discovery client of the fleet's server, like the fleet's own nodes.
+            self._probe = RosProbe(f"fleet_test_{uuid.uuid4().hex[:8]}", domain_id=self.domain_id,
+                                   discovery_server=self.discovery_server)  # fmt: skip
         return self._probe
 
     def namespace(self, robot: str) -> str:
@@ -461,8 +463,10 @@ class FleetHandle:
         import psutil
 
         expected = set(self.control.running().values())
-        for row in self.status().robots:
+        view = self.status()
+        for row in view.robots:
             expected |= row.pids
+        expected |= {server["pid"] for server in view.discovery.values() if server.get("pid")}
         leftovers = []
         for process in processes_marked(self.marker):
             if process.pid in expected:

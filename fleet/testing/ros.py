@@ -3,12 +3,14 @@
 Used by integration tests (ours and users', through the pytest plugin) to look at nodes and
 topics, publish and subscribe, and read and change parameters, from outside the fleet's
 processes.  It joins `domain_id` when given, else ROS_DOMAIN_ID of this process's environment;
-ROS_AUTOMATIC_DISCOVERY_RANGE must be set in the environment before it is created (rclpy reads
-it when the context starts).
+With `discovery_server` (default: ROS_DISCOVERY_SERVER of the environment), it is a discovery
+client of that server, as a fleet's nodes are; without one, discovery stays on this computer.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import time
 from collections import deque
 from typing import Any, Callable
@@ -30,17 +32,49 @@ class Subscription:
         return self.messages[-1] if self.messages else None
 
 
+@contextlib.contextmanager
+def _discovery_environment(discovery_server: str | None):
+    from fleet.runtime.environment import ros_environment
+
+    wanted = ros_environment(0, base={}, discovery_server=discovery_server)
+    if discovery_server:
+        # A plain client learns only of the endpoints matching its own; a probe looks at the
+        # whole graph (topic lists, publisher counts), as `ros2 topic list` does: a super client.
+        wanted["ROS_SUPER_CLIENT"] = "TRUE"
+    keys = ("ROS_DISCOVERY_SERVER", "ROS_SUPER_CLIENT", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
+            "FASTDDS_BUILTIN_TRANSPORTS")
+    saved = {key: os.environ.get(key) for key in keys}
+    try:
+        for key in keys:
+            if key in wanted:
+                os.environ[key] = wanted[key]
+            else:
+                os.environ.pop(key, None)
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
 class RosProbe:
-    def __init__(self, name: str = "fleet_test_probe", domain_id: int | None = None):
+    def __init__(self, name: str = "fleet_test_probe", domain_id: int | None = None,
+                 discovery_server: str | None = None):
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
         self.context = Context()
-        rclpy.init(args=[], context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node(name, context=self.context)
+        discovery_server = discovery_server or os.environ.get("ROS_DISCOVERY_SERVER") or None
+        # rmw reads discovery settings from the environment when it creates the participant:
+        # set them for that moment only (other probes of this process may use other fleets).
+        with _discovery_environment(discovery_server):
+            rclpy.init(args=[], context=self.context, domain_id=domain_id,
+                       signal_handler_options=SignalHandlerOptions.NO)
+            self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._publishers: dict[str, Any] = {}
@@ -105,15 +139,17 @@ class RosProbe:
     # --- parameters --------------------------------------------------------------------------
 
     def _call(self, service_type, name: str, request, timeout: float):
+        from fleet.control.param_helper import call_service
+
         client = self.node.create_client(service_type, name)
         try:
             if not client.wait_for_service(timeout_sec=timeout):
                 raise AssertionError(f"service {name} not available after {timeout:.0f} s")
-            future = client.call_async(request)
-            self.executor.spin_until_future_complete(future, timeout_sec=timeout)
-            if not future.done():
+            spin = lambda future, seconds: self.executor.spin_until_future_complete(future, timeout_sec=seconds)  # noqa: E731
+            response = call_service(client, request, spin, timeout)
+            if response is None:
                 raise AssertionError(f"no answer from {name} after {timeout:.0f} s")
-            return future.result()
+            return response
         finally:
             self.node.destroy_client(client)
 

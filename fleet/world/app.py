@@ -261,6 +261,7 @@ class WorldApp:
                 "battery": robot.channel.battery if robot.channel is not None else None,
                 "model": model_dict(robot.spec.model),
                 "namespace": robot.spec.namespace,
+                **(robot.channel.link() if robot.channel is not None else {}),
                 "trail": [list(p) for p in robot.trail.points],
                 "scan_hits": [list(p) for p in hits],
             }

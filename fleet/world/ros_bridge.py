@@ -101,6 +101,15 @@ class RobotChannel:
             return 0.0, 0.0
         return cmd.linear, cmd.angular
 
+    def link(self) -> dict[str, float | int | None]:
+        """What says this robot's data flows: the age of its last command (wall seconds, None:
+        never received) and the subscriptions matched to its odom (its nodes, once discovered)."""
+        wall = self.command.wall
+        return {
+            "cmd_age": None if wall == -math.inf else round(time.monotonic() - wall, 2),
+            "odom_subscribers": self.odom_pub.get_subscription_count(),
+        }
+
     def publish_odom(self, t: Time, x: float, y: float, yaw: float, vx: float, vy: float, wz: float) -> None:
         ox, oy, oyaw, c, s = self._origin
         dx, dy = x - ox, y - oy

@@ -6,7 +6,8 @@ plane (fleet.control.protocol.WorldDocument validates it) and cuts it down for s
     {"fleet", "sim_time", "wall_time", "real_time_factor", "physics_rate",
      "robots": {name: {"pose": {"x", "y", "yaw"}, "velocity": {"linear", "angular"},
                        "battery": fraction 0..1 or null, "model": {"type", "radius" | "length", "width"},
-                       "trail": [[x, y], ...], "scan_hits": [[x, y], ...]}},
+                       "trail": [[x, y], ...], "scan_hits": [[x, y], ...],
+                       "cmd_age": s since its last cmd_vel or null, "odom_subscribers": n}},
      "obstacles": [{"name", "type": "box"|"cylinder", "position": [x, y], "yaw", "size": [lx, ly, h] | "radius"}],
      "contacts": {"count", "last": [{"sim_time", "a", "b", "kind"}]},
      "errors": [{"sim_time", "message"}]}

@@ -53,8 +53,9 @@ def agent_status(fleet="bump", agent="hostB", world=None, robots=("world",)) -> 
 def test_status_summary_drops_histories_and_keeps_the_last_contacts():
     summary = p.world_summary(world_file())
     data = summary.model_dump()
-    assert set(data) == {"sim_time", "real_time_factor", "robots", "contacts", "errors"}
-    assert set(data["robots"]["robot1"]) == {"pose", "velocity", "battery"}  # no trail, no scan hits
+    assert set(data) == {"sim_time", "real_time_factor", "age", "robots", "contacts", "errors"}
+    # no trail, no scan hits
+    assert set(data["robots"]["robot1"]) == {"pose", "velocity", "battery", "cmd_age", "odom_subscribers"}
     assert data["contacts"]["count"] == 30
     assert [c["sim_time"] for c in data["contacts"]["last"]] == [15.0, 16.0, 17.0, 18.0, 19.0]
     assert data["errors"][0]["message"].startswith("robot 'robot3' not spawned")
@@ -114,7 +115,7 @@ def test_view_shows_worlds_and_robot_poses():
     data = view.to_json()
     assert data["worlds"] == [{"fleet": "bump", "agent": "hostB", "sim_time": 12.5, "real_time_factor": 0.98,
                                "robots": 2, "contacts": world.contacts.model_dump(),
-                               "errors": [world.errors[0].model_dump()]}]  # fmt: skip
+                               "errors": [world.errors[0].model_dump()], "age": None}]  # fmt: skip
     row = robot(view, "robot1")
     assert row.pose == {"x": 0.4, "y": 0.0, "yaw": 0.0} and row.velocity == {"linear": 0.5, "angular": 0.0}
     assert row.battery == 0.9 and robot(view, "robot2").pose["x"] == 0.8

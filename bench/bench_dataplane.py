@@ -1,0 +1,160 @@
+"""The data plane: latency, throughput and discovery of ROS topics that cross computers.
+
+Two "computers" are network namespaces on one bridge (fleet.testing.netns; needs root); "one
+computer" is both sides in this machine's own namespace.  Every participant is a discovery
+client of a Fast DDS discovery server (the `dds` transport), except where LOCALHOST discovery
+is measured for comparison.  Runs:
+
+- latency: one robot's odometry (50 Hz, reliable), one-way p50/p99 from header stamps;
+- throughput: 100 robots' odometry (50 Hz, reliable) and scans (10 Hz, 360 beams, best effort)
+  from one process to another: delivered fraction and latency;
+- discovery: 30 robot participants and a world participant: seconds until the world has
+  matched every robot's subscription (LOCALHOST on one computer, discovery server on one and
+  across two, LOCALHOST with ROS_STATIC_PEERS across two).
+
+Usage: .venv/bin/python bench/bench_dataplane.py [--seconds 20] [--output bench/results/dataplane.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.machine import machine_description  # noqa: E402
+from fleet.dataplane.discovery import DiscoveryServer  # noqa: E402
+from fleet.runtime.environment import discovery_server_port, ros_environment  # noqa: E402
+from fleet.testing.isolation import reserve_domain_id  # noqa: E402
+from fleet.testing.netns import Lan, netns_problem  # noqa: E402
+
+PEER = [sys.executable, str(Path(__file__).resolve().parent / "dataplane_peer.py")]
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else float("nan")
+
+
+class Setup:
+    """Where the sides run: `prefix_a`/`prefix_b` wrap commands (ip netns exec, or nothing)."""
+
+    def __init__(self, name: str, domain: int, lan: Lan | None, discovery: bool = True, static_peers: bool = False):
+        self.name, self.lan = name, lan
+        address = lan.hosts["sim"].address if lan else "127.0.0.1"
+        self.server = f"{address}:{discovery_server_port(domain)}" if discovery else None
+        self.env = ros_environment(domain, discovery_server=self.server)
+        self.env_b = dict(self.env)
+        if static_peers and lan:  # LOCALHOST plus the other computer's address, each way
+            self.env["ROS_STATIC_PEERS"] = lan.hosts["rack"].address
+            self.env_b["ROS_STATIC_PEERS"] = lan.hosts["sim"].address
+        self.ds = None
+        if self.server:
+            self.ds = DiscoveryServer(self.server, ros_environment(domain), Path(tempfile.mkdtemp()) / "ds.log")
+            if lan:  # the server runs on "sim"
+                command = self.ds.command
+                self.ds.command = lambda: lan.hosts["sim"].command(*command())  # type: ignore[method-assign]
+            self.ds.keep_running()
+            time.sleep(0.5)
+
+    def side(self, which: str, *args: str) -> list[str]:
+        command = [*PEER, *args]
+        if self.lan is None:
+            return command
+        return self.lan.hosts["sim" if which == "a" else "rack"].command(*command)
+
+    def close(self) -> None:
+        if self.ds:
+            self.ds.stop()
+
+
+def flow(setup: Setup, robots: int, seconds: float) -> dict:
+    receiver = subprocess.Popen(setup.side("a", "receive", str(robots), str(seconds)), env=setup.env,
+                                stdout=subprocess.PIPE, text=True)  # fmt: skip
+    sender = subprocess.Popen(setup.side("b", "send", str(robots), str(seconds + 2)), env=setup.env_b,
+                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    out, _ = receiver.communicate(timeout=seconds + 120)
+    sent, _ = sender.communicate(timeout=60)
+    rate = json.loads(sent.strip().splitlines()[-1])["odom_rate"]
+    data = json.loads(out.strip().splitlines()[-1])
+    window = data["window"]
+    lat = data["latencies_ms"]
+    return {
+        "p50": percentile(lat, 0.5), "p99": percentile(lat, 0.99),
+        "odom": data["counts"]["odom"] / (robots * rate * window), "scan": data["counts"]["scan"] / (robots * rate / 5 * window),
+        "rate": rate,
+    }  # fmt: skip
+
+
+def discovery(setup: Setup, robots: int, where: str) -> float | None:
+    observer = subprocess.Popen(setup.side("a", "observe", str(robots), "120"), env=setup.env,
+                                stdout=subprocess.PIPE, text=True)  # fmt: skip
+    participants = [subprocess.Popen(setup.side(where, "participant", str(k), "130"), env=setup.env_b,
+                                     stdout=subprocess.DEVNULL) for k in range(robots)]  # fmt: skip
+    out, _ = observer.communicate(timeout=200)
+    for process in participants:
+        process.kill()
+        process.wait()
+    return json.loads(out.strip().splitlines()[-1]).get("converged")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--output", type=Path, default=Path(__file__).resolve().parent / "results" / "dataplane.md")
+    args = parser.parse_args()
+    problem = netns_problem()
+    if problem:
+        print(f"bench_dataplane: {problem}", file=sys.stderr)
+        return 2
+    rows_flow, rows_discovery = [], []
+    with reserve_domain_id() as reservation, Lan(["sim", "rack"]) as lan:
+        domain = reservation.domain_id
+        for label, network in (("one computer", None), ("two computers (veth)", lan)):
+            setup = Setup(label, domain, network)
+            try:
+                for robots in (1, 100):
+                    result = flow(setup, robots, args.seconds)
+                    print(label, robots, result, flush=True)
+                    rows_flow.append((label, robots, result))
+            finally:
+                setup.close()
+        for label, network, with_server, static in (
+            ("one computer, LOCALHOST", None, False, False),
+            ("one computer, discovery server", None, True, False),
+            ("two computers, discovery server", lan, True, False),
+            ("two computers, LOCALHOST + ROS_STATIC_PEERS", lan, False, True),
+        ):
+            setup = Setup(label, domain, network, discovery=with_server, static_peers=static)
+            try:
+                converged = discovery(setup, 30, "b")
+            finally:
+                setup.close()
+            print(label, converged, flush=True)
+            rows_discovery.append((label, converged))
+    lines = [
+        "# Data plane: topics across computers (`dds` transport)", "",
+        f"Machine: {machine_description()}.", f"Command: `.venv/bin/python bench/bench_dataplane.py --seconds {args.seconds:g}`.", "",
+        "Delivered: messages received in the measuring window over those the sender published in it",
+        "(at the rate it kept up: with 100 robots one Python process may publish below 50 Hz).", "",
+        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) |",
+        "|---|---|---|---|---|---|---|",
+    ]  # fmt: skip
+    for label, robots, r in rows_flow:
+        lines.append(f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | {r['scan']:.1%} |")
+    lines += ["", "Discovery of 30 robot participants by a world participant:", "", "| setup | seconds to match all |", "|---|---|"]
+    for label, converged in rows_discovery:
+        lines.append(f"| {label} | {'not converged in 120 s' if converged is None else f'{converged:.1f}'} |")
+    args.output.write_text("\n".join(lines) + "\n")
+    print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

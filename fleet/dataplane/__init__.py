@@ -1,0 +1,1 @@
+"""How a fleet's ROS traffic crosses computers: DDS discovery through a per-fleet server."""

@@ -1,0 +1,134 @@
+"""The fleet's Fast DDS discovery server: where it runs, and running it.
+
+Every ROS participant of a fleet is a discovery client of one server (ROS_DISCOVERY_SERVER,
+see fleet.runtime.environment): participants on any computer find each other through it by
+unicast, with discovery traffic linear in participants.  One agent of the fleet runs it: the
+agent running the world (it is up whenever the fleet is of any use), else the first agent by
+name.  Its address is the one that agent reports (`fleet agent --address`, or the address it
+reaches the router from), its port follows from the fleet's domain id.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from fleet.runtime.environment import discovery_server_port
+from fleet.runtime.processes import die_with_parent, signal_group
+
+log = logging.getLogger("fleet.discovery")
+
+SERVER_PROGRAM = "fast-discovery-server"  # ships in the ROS wheels (package ros-fastrtps)
+
+
+@dataclass(frozen=True)
+class DiscoveryPlan:
+    host: str | None  # agent running the server; None: no agent can (every one is offline)
+    server: str | None  # "address:port"
+    note: str = ""  # why the choice is not the usual one, for the person deploying
+
+
+def plan_discovery(world_agent: str | None, agents: list[str], addresses: dict[str, str], domain_id: int) -> DiscoveryPlan:
+    """Which agent runs the fleet's discovery server (pure).
+
+    `agents`: the agents the fleet places units on; `addresses`: online agents -> address."""
+    port = discovery_server_port(domain_id)
+    preferred = world_agent or (sorted(agents)[0] if agents else None)
+    if preferred is not None and addresses.get(preferred):
+        return DiscoveryPlan(preferred, f"{addresses[preferred]}:{port}")
+    for agent in sorted(agents):
+        if addresses.get(agent):
+            return DiscoveryPlan(agent, f"{addresses[agent]}:{port}",
+                                 f"agent {preferred} is offline: agent {agent} runs the DDS discovery server")
+    return DiscoveryPlan(None, None, "no agent of the fleet is online to run its DDS discovery server: "
+                                     "its robots will only find ROS nodes on their own computer")
+
+
+def server_program() -> Path | None:
+    """The discovery server executable next to this interpreter, else on PATH."""
+    found = shutil.which(SERVER_PROGRAM, path=os.pathsep.join([str(Path(sys.prefix) / "bin"), os.environ.get("PATH", "")]))
+    return Path(found) if found else None
+
+
+def _library_path(env: dict[str, str]) -> str:
+    # The ROS wheels set LD_LIBRARY_PATH for Python (their .pth hook re-executes it); the server,
+    # a plain executable, also needs the prefix's lib/ where libfastrtps lives.
+    parts = [part for part in env.get("LD_LIBRARY_PATH", "").split(os.pathsep) if part]
+    return os.pathsep.join([*parts, str(Path(sys.prefix) / "lib")])
+
+
+class DiscoveryServer:
+    """One fast-discovery-server process, restarted when it dies; output in `log_file`.
+
+    Start it from a thread that lives as long as the server should: it dies with that thread
+    (PR_SET_PDEATHSIG), so a killed agent leaves no server behind."""
+
+    def __init__(self, server: str, env: dict[str, str], log_file: Path):
+        self.server = server
+        self.env = dict(env)
+        self.env["LD_LIBRARY_PATH"] = _library_path(self.env)
+        self.log_file = log_file
+        self.process: subprocess.Popen | None = None
+        self.starts = 0
+
+    def command(self) -> list[str]:
+        program = server_program()
+        if program is None:
+            raise FileNotFoundError(f"{SERVER_PROGRAM} not found (it comes with the ros-jazzy wheels)")
+        address, _, port = self.server.rpartition(":")
+        return [str(program), "--server-id", "0", "--udp-address", address, "--udp-port", port]
+
+    @property
+    def pid(self) -> int | None:
+        process = self.process
+        return process.pid if process is not None and process.poll() is None else None
+
+    def keep_running(self) -> None:
+        """Start the server if it is not running (first call, or it exited)."""
+        if self.process is not None and self.process.poll() is None:
+            return
+        if self.process is not None:
+            log.warning("discovery server %s exited with %s: starting it again", self.server, self.process.returncode)
+        self.log_file.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.log_file, "ab") as output:
+            self.process = subprocess.Popen(
+                self.command(), env=self.env, stdin=subprocess.DEVNULL, stdout=output, stderr=subprocess.STDOUT,
+                start_new_session=True, preexec_fn=die_with_parent, close_fds=True,
+            )  # fmt: skip
+        self.starts += 1
+        log.info("discovery server listening on %s (pid %d)", self.server, self.process.pid)
+
+    def stop(self) -> None:
+        process, self.process = self.process, None
+        if process is None or process.poll() is not None:
+            return
+        signal_group(process.pid, 15)
+        try:
+            process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            signal_group(process.pid, 9)
+            process.wait()
+
+
+def address_towards(endpoints: list[str]) -> str:
+    """This computer's IPv4 address on the route to the first reachable Zenoh endpoint (what the
+    other computers of the fleet see it as); 127.0.0.1 when the router is on this computer.
+
+    A UDP socket's connect only picks the route: nothing is sent."""
+    import socket
+
+    for endpoint in endpoints:
+        _, _, locator = endpoint.partition("/")
+        host = locator.rsplit(":", 1)[0].strip("[]")
+        try:
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+                probe.connect((host, 9))
+                return probe.getsockname()[0]
+        except OSError:
+            continue
+    return "127.0.0.1"

@@ -1,0 +1,128 @@
+"""Pure tests of what status calls `running` (data flows) and of where the discovery server runs."""
+
+from __future__ import annotations
+
+import pytest
+
+from fleet.control import protocol as p
+from fleet.control.view import NO_COMMANDS, STARTUP_GRACE, WORLD_SILENT, build_view
+from fleet.dataplane.discovery import plan_discovery
+from fleet.runtime.environment import discovery_server_port, ros_environment
+
+OLD = STARTUP_GRACE + 60  # node uptime long past start-up
+
+
+def status(agent: str, robots: list[p.RobotState], world: p.WorldSummary | None = None) -> p.StatusReply:
+    info = p.AgentInfo(name=agent, hostname=agent, cores=2, pid=1, version="0", started_at=0.0, address="10.0.0.1")
+    return p.StatusReply(agent=info, fleet="f", time=0.0, generation=1, robots=robots, world=world)
+
+
+def unit(name: str, uptime: float = OLD, state: str = "running") -> p.RobotState:
+    kind = "world" if name == "world" else "robot"
+    nodes = [p.NodeState(name="n", state=state, pid=10, uptime=uptime)]
+    return p.RobotState(name=name, kind=kind, state=state, nodes=nodes, running=1, total=1)
+
+
+def world(age: float = 0.2, **robots: dict) -> p.WorldSummary:
+    return p.WorldSummary(age=age, robots={name: p.WorldRobot(pose=p.Pose(x=0, y=0, yaw=0), **flow)
+                                           for name, flow in robots.items()})  # fmt: skip
+
+
+FLOWING = {"cmd_age": 0.1, "odom_subscribers": 2}
+
+
+def rows(*statuses: p.StatusReply) -> dict[str, tuple[str, str]]:
+    view = build_view(list(statuses), [], now=100.0)
+    return {row.name: (row.state, row.reason) for row in view.robots}
+
+
+def test_a_robot_whose_data_flows_is_running():
+    got = rows(status("sim", [unit("world")], world(r1=FLOWING)), status("rack", [unit("r1")]))
+    assert got == {"world": ("running", ""), "r1": ("running", "")}
+
+
+def test_a_silent_world_makes_every_robot_degraded_with_the_reason():
+    got = rows(status("sim", [unit("world")], world(age=WORLD_SILENT + 9, r1=FLOWING)), status("rack", [unit("r1")]))
+    assert got["world"][0] == "degraded" and "not advancing" in got["world"][1]
+    assert got["r1"] == ("degraded", f"no /clock from the world for {WORLD_SILENT + 9:.0f} s (world not advancing)")
+
+
+@pytest.mark.parametrize("flow, reason", [
+    ({"cmd_age": None, "odom_subscribers": 2}, "no cmd_vel from it has reached the world yet"),
+    ({"cmd_age": NO_COMMANDS + 7, "odom_subscribers": 2}, f"no cmd_vel from it has reached the world for {NO_COMMANDS + 7:.0f} s"),
+    ({"cmd_age": 0.1, "odom_subscribers": 0}, "none of its nodes receives the world's odom"),
+])  # fmt: skip
+def test_a_robot_cut_off_from_the_world_is_degraded(flow, reason):
+    got = rows(status("sim", [unit("world")], world(r1=flow)), status("rack", [unit("r1")]))
+    assert got["r1"] == ("degraded", reason)
+
+
+def test_a_robot_just_started_without_data_yet_is_starting_not_degraded():
+    got = rows(status("sim", [unit("world")], world(r1={"cmd_age": None, "odom_subscribers": 0})),
+               status("rack", [unit("r1", uptime=1.0)]))  # fmt: skip
+    assert got["r1"][0] == "starting" and got["r1"][1].startswith("waiting for data")
+
+
+def test_a_robot_the_world_did_not_spawn_says_why():
+    summary = world(r1=FLOWING)
+    summary.errors = [p.WorldProblem(message="robot 'r2' not spawned: overlaps obstacle 'crate'")]
+    got = rows(status("sim", [unit("world")], summary), status("rack", [unit("r1"), unit("r2")]))
+    assert got["r2"] == ("degraded", "robot 'r2' not spawned: overlaps obstacle 'crate'")
+
+
+def test_without_a_world_processes_decide():
+    assert rows(status("rack", [unit("r1")])) == {"r1": ("running", "")}
+
+
+def test_robots_of_an_agent_that_does_not_answer_say_so():
+    registry = p.RegistryReply(fleet="f", agents={"rack": p.AgentSeen(last_seen=96.0, online=False)},
+                               plan=p.PlanRecord(fleet="f", generation=1, robots={"r1": "rack", "world": "sim"},
+                                                 deployed_at=0.0))  # fmt: skip
+    view = build_view([status("sim", [unit("world")], world())], [registry], now=100.0)
+    r1 = next(row for row in view.robots if row.name == "r1")
+    assert (r1.state, r1.reason) == ("offline", "agent rack does not answer (last seen 4 s ago)")
+
+
+def test_the_world_agent_runs_the_discovery_server():
+    plan = plan_discovery("sim", ["sim", "rack_a"], {"sim": "10.0.0.1", "rack_a": "10.0.0.2"}, 7)
+    assert (plan.host, plan.server, plan.note) == ("sim", f"10.0.0.1:{discovery_server_port(7)}", "")
+
+
+def test_another_online_agent_runs_it_when_the_world_agent_is_away():
+    plan = plan_discovery("sim", ["sim", "rack_a"], {"rack_a": "10.0.0.2"}, 7)
+    assert plan.host == "rack_a" and "sim is offline" in plan.note
+
+
+def test_no_online_agent_means_no_server_and_a_note():
+    plan = plan_discovery(None, ["rack_a"], {}, 7)
+    assert plan.server is None and "no agent" in plan.note
+
+
+def test_discovery_ports_are_valid_and_distinct_for_every_domain():
+    ports = [discovery_server_port(domain) for domain in range(0, 233)]
+    assert len(set(ports)) == len(ports) and max(ports) < 65536
+
+
+def test_nodes_of_a_fleet_with_a_server_are_its_clients_on_udp():
+    env = ros_environment(5, base={"ROS_STATIC_PEERS": "1.2.3.4", "ROS_SUPER_CLIENT": "TRUE"}, discovery_server="10.0.0.1:8652")
+    assert env["ROS_DISCOVERY_SERVER"] == "10.0.0.1:8652" and env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+    assert env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4" and "ROS_STATIC_PEERS" not in env and "ROS_SUPER_CLIENT" not in env
+    alone = ros_environment(5, base={"ROS_DISCOVERY_SERVER": "x"})
+    assert alone["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST" and "ROS_DISCOVERY_SERVER" not in alone
+
+
+@pytest.mark.parametrize("value", ["10.0.0.1", "host:80", "10.0.0.1:0", "10.0.0.1:99999", "999.1.1.1:80", "a\\nb:1"])
+def test_a_bad_discovery_server_in_an_apply_is_refused(value):
+    with pytest.raises(p.ProtocolError):
+        p.decode(p.ApplyRequest(fleet="f", agent="a", generation=1, domain_id=1, bundles=[]).model_dump_json()
+                 .replace('"discovery_server":null', f'"discovery_server":"{value}"').encode(), p.ApplyRequest)
+
+
+def test_an_agent_address_that_is_not_an_address_is_one_line_and_exit_2():
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "fleet", "agent", "--name", "x", "--address", "10.0.0.300",
+                           "--connect", "tcp/127.0.0.1:1"], capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 2
+    assert done.stderr.strip() == "fleet: error: --address: '10.0.0.300' is not an IPv4 address (such as 10.0.0.5)"

@@ -1,0 +1,229 @@
+"""One fleet on three computers: Linux network namespaces on one LAN (tests/multihost/netns.py).
+
+`sim` runs the router and the agent `sim_host` (the world and the fleet's DDS discovery server);
+`rack_a` and `rack_b` each run an agent with two robots.  Everything goes through the `fleet`
+command run on `sim`, as a user at the workstation would.  Checked: every robot moves; a robot
+on one computer meets a robot from another (its safety node stops it on its lidar, and the other
+bumps into it); `fleet param` and `fleet logs` reach robots on other computers; a frozen world
+makes every robot `degraded` with the reason, and they recover; a pulled cable shows in status
+and the robots come back when it is plugged in; nothing is left running.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+import yaml
+
+from fleet.testing.netns import Lan, netns_problem
+
+pytestmark = pytest.mark.integration
+
+PORT = 7447  # each computer is its own network namespace: the default port is free on each
+
+SPEC = {
+    "fleet": "lan",
+    "ros": {"domain_id": 0, "use_sim_time": True},
+    "world": {"agent": "sim_host", "physics_rate": 240, "real_time": True,
+              "obstacles": [{"name": "wall_south", "type": "wall", "position": [2.0, -4.0], "size": [12.0, 0.2, 0.5]}]},
+    "agents": {"sim_host": {}, "rack_a": {}, "rack_b": {}},
+    "defaults": {"template": "diff_drive", "agent": "rack_a", "isolation": "robot",
+                 "model": {"type": "light", "radius": 0.2},
+                 "parameters": {"controller": {"max_speed": 0.4}, "battery": {"capacity": 50.0}}},
+    "robots": [
+        # a1 (rack_a) and b1 (rack_b) drive head-on: a1's safety node stops it on its lidar, b1
+        # has no safety node and bumps into it.
+        {"name": "a1", "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
+         "parameters": {"controller": {"waypoints": [3.0, 0.0], "loop": False}}},
+        {"name": "b1", "agent": "rack_b", "pose": {"x": 3.0, "y": 0.0, "yaw": 3.1416},
+         "launch_args": {"enable_safety": False},
+         "parameters": {"controller": {"waypoints": [3.0, 0.0], "loop": False}}},
+        {"name": "a2", "pose": {"x": -2.0, "y": 3.0, "yaw": 0.0},
+         "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]}}},
+        {"name": "b2", "agent": "rack_b", "pose": {"x": 5.0, "y": 3.0, "yaw": 0.0},
+         "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]}}},
+    ],
+}  # fmt: skip
+ROBOTS = ("a1", "a2", "b1", "b2")
+
+
+@pytest.fixture
+def lan():
+    problem = netns_problem()
+    if problem:
+        pytest.skip(problem)
+    with Lan(["sim", "rack_a", "rack_b"]) as network:
+        yield network
+
+
+class Fleet:
+    """The router and agents of the LAN's computers, and the `fleet` command on `sim`."""
+
+    def __init__(self, lan: Lan, root: Path):
+        self.lan, self.root = lan, root
+        self.endpoint = f"tcp/{lan.hosts['sim'].address}:{PORT}"
+        self.processes: dict[str, subprocess.Popen] = {}
+        self.env = dict(os.environ, FLEET_STATE_DIR=str(root / "state"), ROS_HOME=str(root / "ros"), PYTHONUNBUFFERED="1")
+        for key in ("FLEET_CONNECT", "FLEET_ZENOH_CONFIG", "ROS_DISCOVERY_SERVER", "ROS_LOG_DIR"):
+            self.env.pop(key, None)
+
+    def spawn(self, key: str, host: str, *args: str) -> None:
+        with open(self.root / f"{key}.log", "ab") as log:
+            self.processes[key] = subprocess.Popen(
+                self.lan.hosts[host].command(sys.executable, "-m", "fleet", *args), env=self.env, cwd=self.root,
+                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)  # fmt: skip
+
+    def start(self) -> None:
+        self.spawn("router", "sim", "router", "--listen", self.endpoint, "--state-dir", str(self.root / "router"))
+        for agent, host in (("sim_host", "sim"), ("rack_a", "rack_a"), ("rack_b", "rack_b")):
+            self.spawn(agent, host, "agent", "--name", agent, "--connect", self.endpoint,
+                       "--state-dir", str(self.root / "agents" / agent))  # fmt: skip
+
+    def fleet(self, *args: str, timeout: float = 180) -> subprocess.CompletedProcess:
+        return subprocess.run(self.lan.hosts["sim"].command(sys.executable, "-m", "fleet", *args, "--connect", self.endpoint),
+                              env=self.env, capture_output=True, text=True, timeout=timeout)  # fmt: skip
+
+    def status(self) -> dict:
+        """`fleet status --json` (it exits 1 when not all runs, and still prints the status)."""
+        done = self.fleet("status", "--json", timeout=60)
+        if not done.stdout.strip():
+            raise AssertionError(f"fleet status printed nothing: {done.stderr.strip()}")
+        return json.loads(done.stdout)
+
+    def robots(self) -> dict[str, dict]:
+        return {row["name"]: row for row in self.status()["robots"]}
+
+    def wait(self, predicate, timeout: float, what: str):
+        deadline = time.monotonic() + timeout
+        last = None
+        while time.monotonic() < deadline:
+            last = self.robots()
+            if predicate(last):
+                return last
+            time.sleep(0.5)
+        states = {name: (row["state"], row.get("reason", "")) for name, row in (last or {}).items()}
+        raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}; robots: {states}\n{self.log_tails()}")
+
+    def log_tails(self, lines: int = 15) -> str:
+        parts = []
+        for key in self.processes:
+            text = (self.root / f"{key}.log").read_text(errors="replace").splitlines()[-lines:]
+            parts.append(f"--- {key} ---\n" + "\n".join(text))
+        return "\n".join(parts)
+
+    def stop(self) -> None:
+        agents = [key for key in self.processes if key != "router"]
+        for key in agents + ["router"]:
+            process = self.processes[key]
+            if process.poll() is None:
+                process.terminate()
+            if key == "router":
+                pass
+            try:
+                process.wait(timeout=40)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+
+
+@pytest.fixture
+def fleet(lan, tmp_path, ros_domain):
+    spec = dict(SPEC, ros={"domain_id": ros_domain, "use_sim_time": True})
+    (tmp_path / "lan.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    running = Fleet(lan, tmp_path)
+    running.start()
+    try:
+        yield running
+    finally:
+        running.stop()
+        marker = os.environ.get("FLEET_TEST_MARKER", "")
+        leftovers = [p for p in psutil.process_iter(["environ"]) if marker and (p.info["environ"] or {}).get("FLEET_TEST_MARKER") == marker
+                     and p.pid != os.getpid()]
+        assert not [p for p in leftovers if p.is_running()], f"left running: {leftovers}"
+
+
+def poses(robots: dict[str, dict]) -> dict[str, tuple[float, float]]:
+    return {name: (row["pose"]["x"], row["pose"]["y"]) for name, row in robots.items() if row.get("pose")}
+
+
+def moved(before, after, name, distance=0.2) -> bool:
+    (x0, y0), (x1, y1) = before[name], after[name]
+    return (x1 - x0) ** 2 + (y1 - y0) ** 2 > distance**2
+
+
+def test_fleet_across_three_computers(fleet, tmp_path):
+    # Agents need a moment to reach the router; deploy waits for robots, not for agents.
+    deadline = time.monotonic() + 60
+    agents: dict = {}
+    while time.monotonic() < deadline and not set(agents) >= {"sim_host", "rack_a", "rack_b"}:
+        time.sleep(0.5)
+        try:
+            agents = {row["name"]: row for row in fleet.status()["agents"] if row["online"]}
+        except AssertionError:  # the router is not listening yet
+            continue
+    assert agents["rack_a"]["address"] == fleet.lan.hosts["rack_a"].address
+
+    deploy = fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--timeout", "150")
+    assert deploy.returncode == 0, deploy.stdout + deploy.stderr + fleet.log_tails()
+    assert "fleet up" in deploy.stdout
+    print(deploy.stdout)
+    status = fleet.status()
+    assert status["discovery"]["lan"]["agent"] == "sim_host" and status["discovery"]["lan"]["pid"]
+    assert {row["name"]: row["state"] for row in status["robots"]} == dict.fromkeys(("world", *ROBOTS), "running")
+
+    # Every robot moves.
+    before = poses(fleet.robots())
+    after = fleet.wait(lambda robots: all(moved(before, poses(robots), name) for name in ("a2", "b2")), 30,
+                       "the patrolling robots on both racks to move")
+    assert all(moved(before, poses(after), name, 0.1) for name in ("a1", "b1"))
+
+    # a1 (rack_a) sees b1 (rack_b) on its lidar and its safety node stops it; b1 bumps into a1.
+    def met(robots):
+        world = fleet.status()["worlds"][0]
+        return any({c["a"], c["b"]} == {"a1", "b1"} for c in world["contacts"]["last"])
+
+    fleet.wait(met, 40, "b1 to bump into a1")
+    logs = fleet.fleet("logs", "a1", "safety", "--tail", "50", timeout=60)
+    assert logs.returncode == 0 and "blocked" in logs.stdout, logs.stdout + logs.stderr
+
+    # Parameters and logs of a robot on another computer.
+    done = fleet.fleet("param", "set", "b2", "controller", "max_speed", "0.7", timeout=90)
+    assert done.returncode == 0, done.stdout + done.stderr
+    done = fleet.fleet("param", "get", "b2", "controller", "max_speed", timeout=90)
+    assert done.returncode == 0 and "0.7" in done.stdout, done.stdout + done.stderr
+
+    # A frozen world: no /clock, no odom; every robot degraded, with the reason; then back.
+    world_pid = next(node["pid"] for row in fleet.status()["robots"] if row["name"] == "world" for node in row["nodes"])
+    os.kill(world_pid, signal.SIGSTOP)
+    try:
+        frozen = fleet.wait(lambda robots: all(robots[name]["state"] == "degraded" for name in ROBOTS), 15,
+                            "every robot degraded while the world is frozen")
+        assert all("/clock" in frozen[name]["reason"] for name in ROBOTS), frozen
+        print("FROZEN", {n: (r["state"], r["reason"]) for n, r in frozen.items()})
+        table = fleet.fleet("status")
+        assert table.returncode != 0 and "degraded" in table.stdout and "/clock" in table.stdout, table.stdout
+    finally:
+        os.kill(world_pid, signal.SIGCONT)
+    fleet.wait(lambda robots: all(robots[name]["state"] == "running" for name in ROBOTS), 30,
+               "every robot running again once the world runs")
+
+    # A pulled cable: rack_b's robots stop being running, with the reason; back when plugged in.
+    fleet.lan.set_link("rack_b", False)
+    try:
+        cut = fleet.wait(lambda robots: all(robots[name]["state"] != "running" for name in ("b1", "b2")), 15,
+                         "rack_b's robots shown not running while its cable is out")
+        assert all(cut[name]["reason"] for name in ("b1", "b2")), cut
+        assert cut["a2"]["state"] == "running"
+        print("CUT", {n: (r["state"], r["reason"]) for n, r in cut.items()})
+    finally:
+        fleet.lan.set_link("rack_b", True)
+    fleet.wait(lambda robots: all(robots[name]["state"] == "running" for name in ROBOTS), 60,
+               "rack_b's robots running again once its cable is back")
