@@ -174,7 +174,6 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     deploy = fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--timeout", "150")
     assert deploy.returncode == 0, deploy.stdout + deploy.stderr + fleet.log_tails()
     assert "fleet up" in deploy.stdout
-    print(deploy.stdout)
     status = fleet.status()
     assert status["discovery"]["lan"]["agent"] == "sim_host" and status["discovery"]["lan"]["pid"]
     assert {row["name"]: row["state"] for row in status["robots"]} == dict.fromkeys(("world", *ROBOTS), "running")
@@ -207,7 +206,6 @@ def test_fleet_across_three_computers(fleet, tmp_path):
         frozen = fleet.wait(lambda robots: all(robots[name]["state"] == "degraded" for name in ROBOTS), 15,
                             "every robot degraded while the world is frozen")
         assert all("/clock" in frozen[name]["reason"] for name in ROBOTS), frozen
-        print("FROZEN", {n: (r["state"], r["reason"]) for n, r in frozen.items()})
         table = fleet.fleet("status")
         assert table.returncode != 0 and "degraded" in table.stdout and "/clock" in table.stdout, table.stdout
     finally:
@@ -222,7 +220,6 @@ def test_fleet_across_three_computers(fleet, tmp_path):
                          "rack_b's robots shown not running while its cable is out")
         assert all(cut[name]["reason"] for name in ("b1", "b2")), cut
         assert cut["a2"]["state"] == "running"
-        print("CUT", {n: (r["state"], r["reason"]) for n, r in cut.items()})
     finally:
         fleet.lan.set_link("rack_b", True)
     fleet.wait(lambda robots: all(robots[name]["state"] == "running" for name in ROBOTS), 60,
