@@ -19,11 +19,11 @@ import sys
 import time
 from pathlib import Path
 
-import psutil
 import pytest
 import yaml
 
 from fleet.testing.netns import Lan, netns_problem
+from fleet.testing.processes import MARKER_VARIABLE, processes_marked
 
 pytestmark = pytest.mark.integration
 
@@ -125,8 +125,6 @@ class Fleet:
             process = self.processes[key]
             if process.poll() is None:
                 process.terminate()
-            if key == "router":
-                pass
             try:
                 process.wait(timeout=40)
             except subprocess.TimeoutExpired:
@@ -144,10 +142,12 @@ def fleet(lan, tmp_path, ros_domain):
         yield running
     finally:
         running.stop()
-        marker = os.environ.get("FLEET_TEST_MARKER", "")
-        leftovers = [p for p in psutil.process_iter(["environ"]) if marker and (p.info["environ"] or {}).get("FLEET_TEST_MARKER") == marker
-                     and p.pid != os.getpid()]
-        assert not [p for p in leftovers if p.is_running()], f"left running: {leftovers}"
+        # Everything the router and agents started (nodes, worlds, discovery servers) carries this
+        # test's marker (conftest) through `ip netns exec`: stopping them must have ended it all.
+        deadline = time.monotonic() + 10
+        while (leftovers := processes_marked(os.environ[MARKER_VARIABLE])) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not leftovers, "left running: " + "; ".join(" ".join(p.cmdline()[:6]) for p in leftovers)
 
 
 def poses(robots: dict[str, dict]) -> dict[str, tuple[float, float]]:
@@ -208,6 +208,11 @@ def test_fleet_across_three_computers(fleet, tmp_path):
         assert all("/clock" in frozen[name]["reason"] for name in ROBOTS), frozen
         table = fleet.fleet("status")
         assert table.returncode != 0 and "degraded" in table.stdout and "/clock" in table.stdout, table.stdout
+        # A deploy meanwhile does not say "fleet up": it names who is not running and why.
+        deploy = fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--set", "a2.controller.max_speed=0.3", "--timeout", "8")
+        assert deploy.returncode == 1 and "fleet up" not in deploy.stdout, deploy.stdout
+        why = " ".join(deploy.stdout.partition("not running:")[2].split())  # rich wraps long lines
+        assert "timed out" in deploy.stdout and "a2 " in why and "/clock" in why, deploy.stdout
     finally:
         os.kill(world_pid, signal.SIGCONT)
     fleet.wait(lambda robots: all(robots[name]["state"] == "running" for name in ROBOTS), 30,
