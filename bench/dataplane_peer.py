@@ -1,9 +1,13 @@
 """One side of a data-plane benchmark, run as its own process (in a network namespace or not).
 
-    python bench/dataplane_peer.py send ROBOTS SECONDS     # /rK/odom (50 Hz, reliable), /rK/scan (10 Hz, best effort)
-    python bench/dataplane_peer.py receive ROBOTS SECONDS  # prints one JSON line: latencies and counts
-    python bench/dataplane_peer.py participant K SECONDS   # a robot's participant for the discovery benchmark
-    python bench/dataplane_peer.py observe ROBOTS SECONDS  # prints seconds until it matched every robot
+    python bench/dataplane_peer.py send ROBOTS SECONDS [FIRST]     # /rK/odom (50 Hz, reliable), /rK/scan (10 Hz, best effort)
+    python bench/dataplane_peer.py receive ROBOTS SECONDS [FIRST]  # prints one JSON line: latencies and counts
+    python bench/dataplane_peer.py participant K SECONDS           # a robot's participant for the discovery benchmark
+    python bench/dataplane_peer.py observe ROBOTS SECONDS          # prints the wall time when it matched every robot
+
+A sender first waits until every topic has matched a subscriber, then publishes for SECONDS and
+prints how many messages it sent; a receiver counts everything it gets until the sender's data
+stops.  Robots FIRST .. FIRST+ROBOTS-1 (several receivers share the robots of one sender).
 
 The discovery environment (ROS_DISCOVERY_SERVER or LOCALHOST) comes from the caller.  Latency is
 one-way: header stamps are CLOCK_REALTIME, which network namespaces on one machine share.
@@ -24,7 +28,8 @@ from std_msgs.msg import Empty
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 BEST_EFFORT = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
 ODOM_RATE, SCAN_RATE = 50, 10
-WARMUP = 3.0  # s: discovery and matching before counting
+MATCH_TIMEOUT = 30.0  # s a sender waits for its subscribers
+QUIET = 3.0  # s without a message after which a receiver stops
 
 
 def stamp(msg) -> None:
@@ -32,50 +37,60 @@ def stamp(msg) -> None:
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now, 1_000_000_000)
 
 
-def send(node, robots: int, seconds: float) -> None:
-    odom = [node.create_publisher(Odometry, f"/r{k}/odom", RELIABLE) for k in range(robots)]
-    scan = [node.create_publisher(LaserScan, f"/r{k}/scan", BEST_EFFORT) for k in range(robots)]
+def send(node, robots: range, seconds: float) -> None:
+    odom = [node.create_publisher(Odometry, f"/r{k}/odom", RELIABLE) for k in robots]
+    scan = [node.create_publisher(LaserScan, f"/r{k}/scan", BEST_EFFORT) for k in robots]
+    deadline = time.monotonic() + MATCH_TIMEOUT
+    while time.monotonic() < deadline and not all(p.get_subscription_count() for p in odom + scan):
+        rclpy.spin_once(node, timeout_sec=0.1)
+    time.sleep(1.0)  # the subscribers' side of the match
     o, s = Odometry(), LaserScan()
     s.ranges = [1.0] * 360
     begin = time.monotonic()
     end = begin + seconds
+    sent = {"odom": 0, "scan": 0}
     tick, period = 0, 1.0 / ODOM_RATE
     next_time = time.monotonic()
     while time.monotonic() < end:
         for pub in odom:
             stamp(o)
             pub.publish(o)
+        sent["odom"] += len(odom)
         if tick % (ODOM_RATE // SCAN_RATE) == 0:
             for pub in scan:
                 stamp(s)
                 pub.publish(s)
+            sent["scan"] += len(scan)
         tick += 1
         next_time += period
         time.sleep(max(0.0, next_time - time.monotonic()))
     # The rate the sender kept up (Python may fall behind 50 Hz with many robots).
-    print(json.dumps({"odom_rate": tick / (time.monotonic() - begin)}), flush=True)
+    print(json.dumps({"sent": sent, "odom_rate": tick / (time.monotonic() - begin)}), flush=True)
+    time.sleep(QUIET + 2)  # reliable data still in flight is resent by this writer
 
 
-def receive(node, robots: int, seconds: float) -> None:
+def receive(node, robots: range, seconds: float) -> None:
     latencies: list[float] = []
     counts = {"odom": 0, "scan": 0}
-    counting = [False]
+    last = [time.monotonic()]
 
     def on(kind):
         def callback(msg):
-            if counting[0]:
-                counts[kind] += 1
-                latencies.append((time.time_ns() - msg.header.stamp.sec * 1_000_000_000 - msg.header.stamp.nanosec) / 1e6)
+            now = time.time_ns()
+            counts[kind] += 1
+            last[0] = time.monotonic()
+            latencies.append((now - msg.header.stamp.sec * 1_000_000_000 - msg.header.stamp.nanosec) / 1e6)
         return callback
 
-    for k in range(robots):
+    for k in robots:
         node.create_subscription(Odometry, f"/r{k}/odom", on("odom"), RELIABLE)
         node.create_subscription(LaserScan, f"/r{k}/scan", on("scan"), BEST_EFFORT)
-    start = time.monotonic()
-    while time.monotonic() - start < seconds:
-        counting[0] = time.monotonic() - start > WARMUP
+    deadline = time.monotonic() + MATCH_TIMEOUT + seconds + 60
+    while time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.05)
-    print(json.dumps({"latencies_ms": latencies, "counts": counts, "window": seconds - WARMUP}), flush=True)
+        if (counts["odom"] or counts["scan"]) and time.monotonic() - last[0] > QUIET:
+            break
+    print(json.dumps({"latencies_ms": latencies, "counts": counts}), flush=True)
 
 
 def participant(node, k: int, seconds: float) -> None:
@@ -86,23 +101,28 @@ def participant(node, k: int, seconds: float) -> None:
         rclpy.spin_once(node, timeout_sec=0.2)
 
 
-def observe(node, robots: int, seconds: float) -> None:
-    pubs = [node.create_publisher(Empty, f"/r{k}/odom", RELIABLE) for k in range(robots)]
+def observe(node, robots: range, seconds: float) -> None:
+    pubs = [node.create_publisher(Empty, f"/r{k}/odom", RELIABLE) for k in robots]
+    print(json.dumps({"ready": True}), flush=True)
     start = time.monotonic()
     while time.monotonic() - start < seconds:
-        rclpy.spin_once(node, timeout_sec=0.1)
+        rclpy.spin_once(node, timeout_sec=0.05)
         if all(pub.get_subscription_count() for pub in pubs):
-            print(json.dumps({"converged": time.monotonic() - start}), flush=True)
+            print(json.dumps({"converged_at": time.time()}), flush=True)
             return
     print(json.dumps({"converged": None, "matched": sum(1 for p in pubs if p.get_subscription_count())}), flush=True)
 
 
 def main(argv: list[str]) -> int:
     role, number, seconds = argv[0], int(argv[1]), float(argv[2])
+    first = int(argv[3]) if len(argv) > 3 else 0
     rclpy.init()
-    node = rclpy.create_node(f"bench_{role}_{number}")
+    node = rclpy.create_node(f"bench_{role}_{number}_{first}")
     try:
-        {"send": send, "receive": receive, "participant": participant, "observe": observe}[role](node, number, seconds)
+        if role == "participant":
+            participant(node, number, seconds)
+        else:
+            {"send": send, "receive": receive, "observe": observe}[role](node, range(first, first + number), seconds)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

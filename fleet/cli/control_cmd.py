@@ -444,6 +444,8 @@ def _world_line(world):
     """One line per world: sim time, real-time factor, contacts (with the latest), problems."""
     from rich.text import Text
 
+    from fleet.control.view import WORLD_SILENT
+
     line = Text(f"world {world.fleet} on {world.agent}: t {world.sim_time:.1f} s, "
                 f"RTF {world.real_time_factor:.2f}, {world.robots} robots, ")  # fmt: skip
     count = world.contacts.get("count", 0)
@@ -452,6 +454,8 @@ def _world_line(world):
     if last:
         contacts += f" (last {last[-1]['a']}-{last[-1]['b']} at {last[-1]['sim_time']:.1f} s)"
     line.append(contacts, style="yellow" if count else None)
+    if world.age is not None and world.age > WORLD_SILENT:
+        line.append(f"; no report for {world.age:.0f} s (not advancing)", style="red")
     if world.errors:
         more = f" (+{len(world.errors) - 1} more)" if len(world.errors) > 1 else ""
         line.append(f"; error: {world.errors[0]['message']}{more}", style="red")

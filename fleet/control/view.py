@@ -227,7 +227,10 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSumma
         problem = world_problem or _robot_flow_problem(row, summary)
         if problem is None:
             continue
-        if _young(row):
+        # Just started and never heard by the world: still coming up.  Once its data has flowed
+        # (the world has had a command from it), a stop is a fault whatever its age.
+        heard = summary is not None and getattr(summary.robots.get(row.name), "cmd_age", None) is not None
+        if _young(row) and not heard:
             row.state, row.reason = "starting", f"waiting for data: {problem}"
         else:
             row.state, row.reason = "degraded", problem

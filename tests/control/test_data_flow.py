@@ -63,6 +63,12 @@ def test_a_robot_just_started_without_data_yet_is_starting_not_degraded():
     assert got["r1"][0] == "starting" and got["r1"][1].startswith("waiting for data")
 
 
+def test_a_robot_whose_data_flowed_is_degraded_when_it_stops_even_just_after_start():
+    got = rows(status("sim", [unit("world")], world(age=WORLD_SILENT + 2, r1=FLOWING)),
+               status("rack", [unit("r1", uptime=1.0)]))  # fmt: skip
+    assert got["r1"][0] == "degraded"
+
+
 def test_a_robot_the_world_did_not_spawn_says_why():
     summary = world(r1=FLOWING)
     summary.errors = [p.WorldProblem(message="robot 'r2' not spawned: overlaps obstacle 'crate'")]
