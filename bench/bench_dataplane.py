@@ -5,6 +5,8 @@ computer" is both sides in this machine's own namespace.  Every participant is a
 client of a Fast DDS discovery server (the `dds` transport), except where LOCALHOST discovery
 is measured for comparison.  Runs:
 
+- the same over the `zenoh` transport (a router on one computer, a bridge on each), with the
+  bridges' CPU per robot;
 - latency: one robot's odometry (50 Hz, reliable), one-way p50/p99 from header stamps;
 - throughput: 100 robots' odometry (50 Hz, reliable) and scans (10 Hz, 360 beams, best effort)
   from one process to another: delivered fraction and latency;
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -26,10 +29,13 @@ import tempfile
 import time
 from pathlib import Path
 
+import psutil
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.machine import machine_description  # noqa: E402
-from fleet.dataplane.discovery import DiscoveryServer  # noqa: E402
+from fleet.control.protocol import TopicRoute  # noqa: E402
+from fleet.dataplane.discovery import ServiceProcess, server_command, server_environment  # noqa: E402
 from fleet.runtime.environment import discovery_server_port, ros_environment  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id  # noqa: E402
 from fleet.testing.netns import Lan, netns_problem  # noqa: E402
@@ -56,10 +62,11 @@ class Setup:
             self.env_b["ROS_STATIC_PEERS"] = lan.hosts["sim"].address
         self.ds = None
         if self.server:
-            self.ds = DiscoveryServer(self.server, ros_environment(domain), Path(tempfile.mkdtemp()) / "ds.log")
+            command = server_command(self.server)
             if lan:  # the server runs on "sim"
-                command = self.ds.command
-                self.ds.command = lambda: lan.hosts["sim"].command(*command())  # type: ignore[method-assign]
+                command = lan.hosts["sim"].command(*command)
+            self.ds = ServiceProcess(self.server, command, server_environment(ros_environment(domain)),
+                                     Path(tempfile.mkdtemp()) / "ds.log")  # fmt: skip
             self.ds.keep_running()
             time.sleep(0.5)
 
@@ -69,15 +76,74 @@ class Setup:
             return command
         return self.lan.hosts["sim" if which == "a" else "rack"].command(*command)
 
+    def prepare(self, robots: int) -> None:
+        """Before a flow of `robots` robots (the zenoh setup starts its bridges here)."""
+
+    def finish(self) -> float | None:
+        """After a flow: CPU seconds its bridges used (None: no bridges)."""
+        return None
+
     def close(self) -> None:
         if self.ds:
             self.ds.stop()
+
+
+class ZenohSetup(Setup):
+    """The `zenoh` transport on two computers: DDS on each computer's loopback (a discovery server
+    each), a router on sim, a bridge on each side carrying the robots' topics rack -> sim."""
+
+    def __init__(self, name: str, domain: int, lan: Lan):
+        self.name, self.lan, self.domain = name, lan, domain
+        self.server = f"127.0.0.1:{discovery_server_port(domain)}"
+        self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
+        self.tmp = Path(tempfile.mkdtemp())
+        self.servers = [ServiceProcess(self.server, lan.hosts[host].command(*server_command(self.server)),
+                                       server_environment(ros_environment(domain)), self.tmp / f"ds-{host}.log")
+                        for host in ("sim", "rack")]  # fmt: skip
+        self.endpoint = f"tcp/{lan.hosts['sim'].address}:7447"
+        router = [sys.executable, "-m", "fleet", "router", "--listen", self.endpoint, "--state-dir", str(self.tmp / "router")]
+        self.servers.append(ServiceProcess("router", lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log"))
+        for service in self.servers:
+            service.keep_running()
+        time.sleep(2.0)
+        self.ds = None
+        self.bridges: list[ServiceProcess] = []
+
+    def prepare(self, robots: int) -> None:
+        routes = [TopicRoute(name=f"/r{k}/{topic}", type=kind, reliable=reliable)
+                  for k in range(robots) for topic, kind, reliable in
+                  (("odom", "nav_msgs/msg/Odometry", True), ("scan", "sensor_msgs/msg/LaserScan", False))]  # fmt: skip
+        for host, direction in (("rack", "exports"), ("sim", "imports")):
+            config = self.tmp / f"bridge-{host}-{robots}.json"
+            config.write_text(json.dumps({"fleet": "bench", "connect": [self.endpoint], "zenoh_config": None,
+                                          "exports": [], "imports": [],
+                                          direction: [route.model_dump() for route in routes]}))  # fmt: skip
+            command = self.lan.hosts[host].command(sys.executable, "-m", "fleet.dataplane.bridge", str(config))
+            bridge = ServiceProcess(host, command, self.env, self.tmp / f"bridge-{host}.log")
+            bridge.keep_running()
+            self.bridges.append(bridge)
+        time.sleep(3.0)  # bridges up: sessions open, endpoints declared
+
+    def finish(self) -> float | None:
+        used = 0.0
+        for bridge in self.bridges:
+            times = psutil.Process(bridge.pid).cpu_times()
+            used += times.user + times.system
+            bridge.stop()
+        self.bridges = []
+        return used
+
+    def close(self) -> None:
+        for service in self.bridges + self.servers:
+            service.stop()
 
 
 RECEIVERS = {1: 1, 100: 4}  # robots -> receiving processes (a robot's data goes to its own processes)
 
 
 def flow(setup: Setup, robots: int, seconds: float) -> dict:
+    setup.prepare(robots)
+    started = time.monotonic()
     share = robots // RECEIVERS[robots]
     receivers = [subprocess.Popen(setup.side("a", "receive", str(share), str(seconds), str(first)), env=setup.env,
                                   stdout=subprocess.PIPE, text=True) for first in range(0, robots, share)]  # fmt: skip
@@ -92,7 +158,9 @@ def flow(setup: Setup, robots: int, seconds: float) -> dict:
         latencies += data["latencies_ms"]
         for kind in received:
             received[kind] += data["counts"][kind]
+    cpu = setup.finish()
     return {
+        "bridge_cpu_per_robot": None if cpu is None else cpu / (time.monotonic() - started) / robots,
         "p50": percentile(latencies, 0.5), "p99": percentile(latencies, 0.99), "rate": sent["odom_rate"],
         "odom": received["odom"] / sent["sent"]["odom"], "scan": received["scan"] / sent["sent"]["scan"],
     }  # fmt: skip
@@ -127,8 +195,8 @@ def main() -> int:
     rows_flow, rows_discovery = [], []
     with reserve_domain_id() as reservation, Lan(["sim", "rack"]) as lan:
         domain = reservation.domain_id
-        for label, network in (("one computer", None), ("two computers (veth)", lan)):
-            setup = Setup(label, domain, network)
+        for label, network in (("one computer", None), ("two computers (veth)", lan), ("two computers, zenoh", lan)):
+            setup = ZenohSetup(label, domain, lan) if "zenoh" in label else Setup(label, domain, network)
             try:
                 for robots in (1, 100):
                     result = flow(setup, robots, args.seconds)
@@ -155,11 +223,14 @@ def main() -> int:
         "One sender process publishes every robot's topics; with 100 robots, four receiver processes",
         "take 25 robots each. Delivered: messages received over messages published. Latency is one-way",
         "and includes any queueing in the receivers.", "",
-        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) |",
-        "|---|---|---|---|---|---|---|",
+        "Bridge CPU: CPU time of both bridges (zenoh transport) over the run, per robot, in % of one core.", "",
+        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) | bridge CPU per robot |",
+        "|---|---|---|---|---|---|---|---|",
     ]  # fmt: skip
     for label, robots, r in rows_flow:
-        lines.append(f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | {r['scan']:.1%} |")
+        cpu = r["bridge_cpu_per_robot"]
+        lines.append(f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | "
+                     f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} |")
     lines += ["", "Discovery of 30 robot participants by a world participant:", "", "| setup | seconds to match all |", "|---|---|"]
     for label, converged in rows_discovery:
         lines.append(f"| {label} | {'not converged in 120 s' if converged is None else f'{converged:.1f}'} |")

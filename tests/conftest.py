@@ -73,13 +73,13 @@ def ros_env(ros_domain, monkeypatch, tmp_path_factory):
     ROS_DISCOVERY_SERVER for its later participants even once the variable is gone (measured),
     so in a test process where a fleet test made a discovery client, a later LOCALHOST
     participant would look for that server and find nobody."""
-    from fleet.dataplane.discovery import DiscoveryServer
+    from fleet.dataplane.discovery import discovery_server
     from fleet.runtime.environment import discovery_server_port
 
-    server = DiscoveryServer(f"127.0.0.1:{discovery_server_port(ros_domain)}", ros_environment(ros_domain),
-                             tmp_path_factory.mktemp("discovery") / "server.log")  # fmt: skip
+    server = discovery_server(f"127.0.0.1:{discovery_server_port(ros_domain)}", ros_environment(ros_domain),
+                              tmp_path_factory.mktemp("discovery") / "server.log")  # fmt: skip
     server.keep_running()
-    env = ros_environment(ros_domain, discovery_server=server.server)
+    env = ros_environment(ros_domain, discovery_server=server.key)
     for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS",
                 "ROS_DISCOVERY_SERVER"):
         monkeypatch.setenv(key, env[key])

@@ -5,8 +5,9 @@ Threads, and why:
   whole session.  Pool threads decode, validate, persist and reply.
 - One reconcile thread starts and stops units, so applies are carried out one at a time and in
   order.
-- One discovery thread runs the DDS discovery server of each fleet that names this agent its
-  host (fleet.dataplane.discovery), restarting it if it dies.  (Node processes die with the agent, even on SIGKILL: the runner's session threads
+- One services thread runs each fleet's helper processes here, restarting them if they die:
+  the DDS discovery server when the fleet names this agent its host, the Zenoh bridge when the
+  fleet's transport is `zenoh` (fleet.dataplane).  (Node processes die with the agent, even on SIGKILL: the runner's session threads
   fork them with PR_SET_PDEATHSIG.  Leftovers of anything else are found by their environment
   marker when the agent starts again.)
 - The main thread owns the Zenoh session: it opens it (retrying while no router answers; robots
@@ -18,6 +19,7 @@ Threads, and why:
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import queue
@@ -37,6 +39,7 @@ from fleet.control.reconcile import plan_changes
 from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
 from fleet.control.state import AgentStore, FleetState
 from fleet.control.units import UNIT_MARKER, Unit
+from fleet.files import write_atomic
 
 log = logging.getLogger("fleet.agent")
 
@@ -76,7 +79,8 @@ class Agent:
         self._units: dict[tuple[str, str], Unit] = {}
         self._reconciled: dict[str, int] = {}
         self._tokens: dict[str, Any] = {}
-        self._discovery: dict[str, Any] = {}  # fleet -> DiscoveryServer run here (discovery thread)
+        # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
+        self._services: dict[tuple[str, str], Any] = {}
         self._work: queue.Queue[str | None] = queue.Queue()
         self._requests = ThreadPoolExecutor(max_workers=4, thread_name_prefix="fleet-agent-req")
         # Parameter calls take seconds (an rclpy helper process): their own pool, so status and
@@ -98,8 +102,8 @@ class Agent:
         self._restore()
         worker = threading.Thread(target=self._reconcile_loop, name="fleet-agent-reconcile")
         worker.start()
-        discovery = threading.Thread(target=self._discovery_loop, name="fleet-agent-discovery")
-        discovery.start()
+        services = threading.Thread(target=self._services_loop, name="fleet-agent-services")
+        services.start()
         try:
             self._session = open_client_retrying(self.connect, self.zenoh_config, AGENT_LEASE_MS, self.stop_event)
             if self._session is not None:
@@ -122,7 +126,7 @@ class Agent:
             self._slow_requests.shutdown(wait=True, cancel_futures=True)
             self._work.put(None)
             worker.join()
-            discovery.join()
+            services.join()
 
     def _restore(self) -> None:
         fleets, problems = self.store.load()
@@ -349,44 +353,65 @@ class Agent:
         env[UNIT_MARKER] = str(self.store.root)
         return env
 
-    # -- discovery servers ----------------------------------------------------------------------
+    # -- fleet services: discovery server, Zenoh bridge ----------------------------------------
 
-    def _discovery_loop(self) -> None:
-        """Run the discovery server of every fleet hosted here; stop those no longer wanted."""
-        from fleet.dataplane.discovery import DiscoveryServer
+    def _wanted_services(self) -> dict[tuple[str, str], tuple[str, Any]]:
+        """(fleet, "discovery" | "bridge") -> (key, request) of every service this agent should run."""
+        wanted: dict[tuple[str, str], tuple[str, Any]] = {}
+        with self._lock:
+            requests = [state.request for state in self._fleets.values() if state.request.bundles]
+        for request in requests:
+            if request.discovery_server and request.discovery_host == self.name:
+                wanted[(request.fleet, "discovery")] = (request.discovery_server, request)
+            if request.transport == "zenoh" and (request.bridge.exports or request.bridge.imports):
+                routes = request.bridge.model_dump_json()
+                wanted[(request.fleet, "bridge")] = (f"{request.discovery_server}|{routes}", request)
+        return wanted
 
-        servers: dict[str, DiscoveryServer] = self._discovery  # replaced only under the lock
+    def _service(self, fleet: str, kind: str, key: str, request: p.ApplyRequest):
+        from fleet.dataplane.discovery import ServiceProcess, discovery_server
+
+        directory = self.store.root / "services"
+        if kind == "discovery":
+            return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
+        config = directory / f"{fleet}.bridge.json"
+        directory.mkdir(parents=True, exist_ok=True)
+        write_atomic(config, json.dumps({
+            "fleet": fleet, "connect": self.connect, "zenoh_config": str(self.zenoh_config) if self.zenoh_config else None,
+            "exports": [r.model_dump() for r in request.bridge.exports],
+            "imports": [r.model_dump() for r in request.bridge.imports],
+        }))  # fmt: skip
+        command = [sys.executable, "-m", "fleet.dataplane.bridge", str(config)]
+        env = self._unit_env(request.domain_id, request.discovery_server)
+        return ServiceProcess(key, command, env, directory / f"{fleet}.bridge.log")
+
+    def _services_loop(self) -> None:
+        """Run the services of every fleet that wants them here; stop those no longer wanted."""
+        services = self._services  # entries replaced only under the lock (status reads them)
         try:
             while not self.stop_event.is_set():
-                with self._lock:
-                    wanted = {
-                        fleet: state.request for fleet, state in self._fleets.items()
-                        if state.request.bundles and state.request.discovery_server
-                        and state.request.discovery_host == self.name
-                    }  # fmt: skip
-                for fleet in list(servers):
-                    request = wanted.get(fleet)
-                    if request is None or request.discovery_server != servers[fleet].server:
+                wanted = self._wanted_services()
+                for name in list(services):
+                    if name not in wanted or wanted[name][0] != services[name].key:
                         with self._lock:
-                            server = servers.pop(fleet)
-                        server.stop()
-                for fleet, request in wanted.items():
-                    if fleet not in servers:
-                        env = self._unit_env(request.domain_id, None)
-                        with self._lock:
-                            servers[fleet] = DiscoveryServer(request.discovery_server, env,
-                                                             self.store.root / "discovery" / f"{fleet}.log")
+                            service = services.pop(name)
+                        service.stop()
+                for name, (key, request) in wanted.items():
                     try:
-                        servers[fleet].keep_running()
+                        if name not in services:
+                            service = self._service(*name, key, request)
+                            with self._lock:
+                                services[name] = service
+                        services[name].keep_running()
                     except OSError as error:
-                        log.error("cannot run the discovery server of fleet %s: %s", fleet, error)
+                        log.error("cannot run the %s of fleet %s: %s", name[1], name[0], error)
                 self.stop_event.wait(0.5)
         finally:
             with self._lock:
-                stopping = list(servers.values())
-                servers.clear()
-            for server in stopping:
-                server.stop()
+                stopping = list(services.values())
+                services.clear()
+            for service in stopping:
+                service.stop()
 
     def _stop_all_units(self) -> None:
         with self._lock:
@@ -420,7 +445,8 @@ class Agent:
             )
             reconciled = self._reconciled.get(fleet, 0) if fleet else 0
             overrides = dict(state.overrides) if state else {}
-            discovery = self._discovery.get(fleet) if fleet else None
+            discovery = self._services.get((fleet, "discovery")) if fleet else None
+            bridge = self._services.get((fleet, "bridge")) if fleet else None
         reply = p.StatusReply(agent=self.info, fleet=fleet, time=time.time())
         if state is None:
             return reply
@@ -428,7 +454,9 @@ class Agent:
         reply.reconciled_generation = reconciled
         reply.domain_id = state.request.domain_id
         if discovery is not None:
-            reply.discovery_server, reply.discovery_pid = discovery.server, discovery.pid
+            reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
+        if bridge is not None:
+            reply.bridge_pid = bridge.pid
         seen = set()
         for name, unit in units:
             reply.robots.append(unit.state(overrides.get(name, {})))

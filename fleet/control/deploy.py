@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 from fleet.control import protocol as p
 from fleet.control.client import ControlClient
 from fleet.control.view import FleetView, RobotRow, build_view
-from fleet.dataplane.discovery import DiscoveryPlan, plan_discovery
+from fleet.dataplane.discovery import DiscoveryPlan, local_servers, plan_discovery
+from fleet.dataplane.topics import bridge_routes
 from fleet.errors import ControlError
 
 POLL_INTERVAL = 0.1
@@ -34,7 +35,7 @@ def requests_for(expansion, generation: int, serving: set[str], discovery: Disco
     for agent in serving:
         by_agent.setdefault(agent, [])
     now = time.time()
-    return [
+    requests = [
         p.ApplyRequest(
             fleet=expansion.fleet, agent=agent, generation=generation, domain_id=expansion.domain_id,
             bundles=bundles, sent_at=now,
@@ -42,6 +43,19 @@ def requests_for(expansion, generation: int, serving: set[str], discovery: Disco
         )  # fmt: skip
         for agent, bundles in sorted(by_agent.items())
     ]
+    if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
+        servers = local_servers(sorted({b.agent for b in expansion.bundles}), expansion.domain_id)
+        routes = bridge_routes(_world_agent(expansion), [(r.name, r.namespace, r.agent) for r in expansion.robots])
+        for request in requests:
+            request.transport = "zenoh"
+            request.discovery_server = servers.get(request.agent)
+            request.discovery_host = request.agent if request.discovery_server else None
+            request.bridge = routes.get(request.agent, p.BridgeRoutes())
+    return requests
+
+
+def _world_agent(expansion) -> str | None:
+    return next((bundle.agent for bundle in expansion.bundles if bundle.kind == "world"), None)
 
 
 def with_planned_agents(requests: list[p.ApplyRequest], registries: list[p.RegistryReply], fleet: str,
@@ -58,11 +72,14 @@ def with_planned_agents(requests: list[p.ApplyRequest], registries: list[p.Regis
 
 
 def discovery_for(expansion, view: FleetView) -> DiscoveryPlan:
-    """Where the fleet's discovery server runs, from the agents online in `view` (pure)."""
-    world = [bundle.agent for bundle in expansion.bundles if bundle.kind == "world"]
-    addresses = {agent.name: agent.address for agent in view.agents if agent.online and agent.address}
+    """Where the fleet's discovery server runs, from the agents online in `view` (pure).  With the
+    zenoh transport: the world agent's own (the one a test probe on its computer joins)."""
     agents = sorted({bundle.agent for bundle in expansion.bundles})
-    return plan_discovery(world[0] if world else None, agents, addresses, expansion.domain_id)
+    if expansion.transport == "zenoh":
+        host = _world_agent(expansion) or (agents[0] if agents else None)
+        return DiscoveryPlan(host, local_servers(agents, expansion.domain_id).get(host) if host else None)
+    addresses = {agent.name: agent.address for agent in view.agents if agent.online and agent.address}
+    return plan_discovery(_world_agent(expansion), agents, addresses, expansion.domain_id)
 
 
 def plan_record(expansion, generation: int) -> p.PlanRecord:

@@ -17,6 +17,7 @@ Key space (every key lives under the fleet's name, so several fleets share one r
     fleet/<fleet>/desired/<agent>          put        ApplyRequest (deploy/down -> router registry)
                                            queryable  (router) DesiredQuery -> the stored ApplyRequests
     fleet/<fleet>/alive/agent/<agent>      liveliness token, one per fleet the agent serves
+    fleet/<fleet>/data/<ros topic>         put        a ROS message, CDR-serialized (`zenoh` transport)
 
 An agent declares its queryables with `*` in the fleet chunk: it serves whatever fleet is
 deployed to it, and learns that it serves a fleet from the first apply it accepts.
@@ -113,6 +114,11 @@ def plan_key(fleet: str) -> str:
 def desired_key(fleet: str, agent: str) -> str:
     """The router keeps the latest apply of each agent here, for agents that were away."""
     return f"fleet/{fleet}/desired/{agent}"
+
+
+def data_key(fleet: str, topic: str) -> str:
+    """Where the `zenoh` transport carries a ROS topic ("/robot1/odom" -> fleet/f/data/robot1/odom)."""
+    return f"fleet/{fleet}/data/{topic.strip('/')}"
 
 
 def alive_key(fleet: str, agent: str) -> str:
@@ -238,6 +244,27 @@ def hot_digest(files: dict[str, str], hot_files: list[str]) -> str:
     return h.hexdigest()
 
 
+class TopicRoute(BaseModel):
+    """One ROS topic a Zenoh bridge carries (fleet.dataplane.topics makes them)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(pattern=r"^(/[A-Za-z_][A-Za-z0-9_]{0,62}){1,8}$")
+    type: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z_][A-Za-z0-9_]*$")
+    reliable: bool = True
+    transient_local: bool = False
+    depth: int = Field(10, ge=1, le=1000)
+
+
+class BridgeRoutes(BaseModel):
+    """What an agent's Zenoh bridge sends out (local ROS -> Zenoh) and brings in (Zenoh -> local ROS)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    exports: list[TopicRoute] = Field([], max_length=4 * MAX_BUNDLES + 8)
+    imports: list[TopicRoute] = Field([], max_length=4 * MAX_BUNDLES + 8)
+
+
 class ApplyRequest(Message):
     kind: Literal["apply"] = "apply"
     fleet: str
@@ -250,6 +277,9 @@ class ApplyRequest(Message):
     # fleet's ROS traffic stays on each agent's computer (no agent could host a server).
     discovery_server: str | None = None
     discovery_host: str | None = None
+    # The `zenoh` transport: topics this agent's bridge carries over the fleet's Zenoh network.
+    transport: Literal["dds", "zenoh"] = "dds"
+    bridge: BridgeRoutes = BridgeRoutes()
 
     @field_validator("fleet", "agent")
     @classmethod
@@ -479,6 +509,7 @@ class StatusReply(Message):
     # (None while it is not running).
     discovery_server: str | None = None
     discovery_pid: int | None = None
+    bridge_pid: int | None = None  # this agent's Zenoh bridge of the fleet, when it runs one
     robots: list[RobotState] = []
     world: WorldSummary | None = None  # when this agent runs the fleet's world and it has reported
     time: float

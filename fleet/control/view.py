@@ -80,8 +80,16 @@ class FleetView:
     generations: dict[tuple[str, str], int] = field(default_factory=dict)  # (fleet, agent) -> accepted
     domain_ids: dict[str, int] = field(default_factory=dict)
     worlds: list[WorldRow] = field(default_factory=list)  # one per fleet whose world reported
-    # fleet -> {"agent", "server" ("address:port"), "pid" (None: not running)}
-    discovery: dict[str, dict[str, Any]] = field(default_factory=dict)
+    # fleet -> {"agent", "server" ("address:port"), "pid" (None: not running)}; with the zenoh
+    # transport every agent runs its own, and the list has one per agent
+    discovery: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    bridges: dict[str, dict[str, int | None]] = field(default_factory=dict)  # fleet -> agent -> pid
+
+    @property
+    def service_pids(self) -> set[int]:
+        """Pids of the fleets' discovery servers and bridges (processes the agents run besides units)."""
+        pids = {server["pid"] for servers in self.discovery.values() for server in servers if server.get("pid")}
+        return pids | {pid for agents in self.bridges.values() for pid in agents.values() if pid}
 
     @property
     def all_running(self) -> bool:
@@ -95,6 +103,7 @@ class FleetView:
             domain_ids={f: d for f, d in self.domain_ids.items() if f == fleet},
             worlds=[world for world in self.worlds if world.fleet == fleet],
             discovery={f: d for f, d in self.discovery.items() if f == fleet},
+            bridges={f: b for f, b in self.bridges.items() if f == fleet},
         )  # fmt: skip
 
     def robots_of(self, fleet: str) -> list[RobotRow]:
@@ -112,6 +121,7 @@ class FleetView:
             "robots": [asdict(robot) for robot in self.robots],
             "worlds": [asdict(world) for world in self.worlds],
             "discovery": self.discovery,
+            "bridges": self.bridges,
             "all_running": self.all_running,
         }
 
@@ -122,7 +132,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     generations: dict[tuple[str, str], int] = {}
     domain_ids: dict[str, int] = {}
     worlds: dict[str, tuple[str, p.WorldSummary]] = {}  # fleet -> (agent, summary)
-    discovery: dict[str, dict[str, Any]] = {}
+    discovery: dict[str, list[dict[str, Any]]] = {}
+    bridges: dict[str, dict[str, int | None]] = {}
 
     for status in statuses:
         info = status.agent
@@ -140,7 +151,10 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         if status.world is not None:
             worlds[status.fleet] = (info.name, status.world)
         if status.discovery_server:
-            discovery[status.fleet] = {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid}
+            discovery.setdefault(status.fleet, []).append(
+                {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid})
+        if status.bridge_pid is not None:
+            bridges.setdefault(status.fleet, {})[info.name] = status.bridge_pid
         for robot in status.robots:
             robots[(status.fleet, robot.name)] = RobotRow(
                 fleet=status.fleet, name=robot.name, kind=robot.kind, agent=info.name, state=robot.state,
@@ -198,6 +212,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         domain_ids=domain_ids,
         worlds=world_rows,
         discovery=discovery,
+        bridges=bridges,
     )
 
 

@@ -49,6 +49,13 @@ def plan_discovery(world_agent: str | None, agents: list[str], addresses: dict[s
                                      "its robots will only find ROS nodes on their own computer")
 
 
+def local_servers(agents: list[str], domain_id: int) -> dict[str, str]:
+    """The `zenoh` transport: each agent's own discovery server on its loopback (pure).  DDS then
+    stays on each computer and the bridges carry what crosses; one slot per agent (by name order)
+    keeps agents that share a computer apart."""
+    return {agent: f"127.0.0.1:{discovery_server_port(domain_id, slot)}" for slot, agent in enumerate(sorted(agents))}
+
+
 def server_program() -> Path | None:
     """The discovery server executable next to this interpreter, else on PATH."""
     found = shutil.which(SERVER_PROGRAM, path=os.pathsep.join([str(Path(sys.prefix) / "bin"), os.environ.get("PATH", "")]))
@@ -62,26 +69,34 @@ def _library_path(env: dict[str, str]) -> str:
     return os.pathsep.join([*parts, str(Path(sys.prefix) / "lib")])
 
 
-class DiscoveryServer:
-    """One fast-discovery-server process, restarted when it dies; output in `log_file`.
+def server_command(server: str) -> list[str]:
+    """The command line of a discovery server listening on `server` ("address:port")."""
+    program = server_program()
+    if program is None:
+        raise FileNotFoundError(f"{SERVER_PROGRAM} not found (it comes with the ros-jazzy wheels)")
+    address, _, port = server.rpartition(":")
+    return [str(program), "--server-id", "0", "--udp-address", address, "--udp-port", port]
 
-    Start it from a thread that lives as long as the server should: it dies with that thread
-    (PR_SET_PDEATHSIG), so a killed agent leaves no server behind."""
 
-    def __init__(self, server: str, env: dict[str, str], log_file: Path):
-        self.server = server
+def server_environment(env: dict[str, str]) -> dict[str, str]:
+    """`env` with the library path the server executable needs."""
+    return {**env, "LD_LIBRARY_PATH": _library_path(env)}
+
+
+class ServiceProcess:
+    """One long-running helper process of a fleet (a discovery server, a Zenoh bridge),
+    restarted when it dies; output appended to `log_file`.
+
+    Start it from a thread that lives as long as the process should: it dies with that thread
+    (PR_SET_PDEATHSIG), so a killed agent leaves nothing behind."""
+
+    def __init__(self, key: str, command: list[str], env: dict[str, str], log_file: Path):
+        self.key = key  # what it is for, compared to decide a restart ("address:port", a config digest)
+        self.command = command
         self.env = dict(env)
-        self.env["LD_LIBRARY_PATH"] = _library_path(self.env)
         self.log_file = log_file
         self.process: subprocess.Popen | None = None
         self.starts = 0
-
-    def command(self) -> list[str]:
-        program = server_program()
-        if program is None:
-            raise FileNotFoundError(f"{SERVER_PROGRAM} not found (it comes with the ros-jazzy wheels)")
-        address, _, port = self.server.rpartition(":")
-        return [str(program), "--server-id", "0", "--udp-address", address, "--udp-port", port]
 
     @property
     def pid(self) -> int | None:
@@ -89,19 +104,19 @@ class DiscoveryServer:
         return process.pid if process is not None and process.poll() is None else None
 
     def keep_running(self) -> None:
-        """Start the server if it is not running (first call, or it exited)."""
+        """Start the process if it is not running (first call, or it exited)."""
         if self.process is not None and self.process.poll() is None:
             return
         if self.process is not None:
-            log.warning("discovery server %s exited with %s: starting it again", self.server, self.process.returncode)
+            log.warning("%s exited with %s: starting it again", self.command[0], self.process.returncode)
         self.log_file.parent.mkdir(parents=True, exist_ok=True)
         with open(self.log_file, "ab") as output:
             self.process = subprocess.Popen(
-                self.command(), env=self.env, stdin=subprocess.DEVNULL, stdout=output, stderr=subprocess.STDOUT,
+                self.command, env=self.env, stdin=subprocess.DEVNULL, stdout=output, stderr=subprocess.STDOUT,
                 start_new_session=True, preexec_fn=die_with_parent, close_fds=True,
             )  # fmt: skip
         self.starts += 1
-        log.info("discovery server listening on %s (pid %d)", self.server, self.process.pid)
+        log.info("started %s (pid %d)", " ".join(self.command[:4]), self.process.pid)
 
     def stop(self) -> None:
         process, self.process = self.process, None
@@ -113,6 +128,10 @@ class DiscoveryServer:
         except subprocess.TimeoutExpired:
             signal_group(process.pid, 9)
             process.wait()
+
+
+def discovery_server(server: str, env: dict[str, str], log_file: Path) -> ServiceProcess:
+    return ServiceProcess(server, server_command(server), server_environment(env), log_file)
 
 
 def address_towards(endpoints: list[str]) -> str:

@@ -61,6 +61,10 @@ class Expansion:
     def domain_id(self) -> int:
         return self.spec.ros.domain_id
 
+    @property
+    def transport(self) -> str:
+        return self.spec.ros.transport
+
     def for_agent(self, agent: str) -> list[Bundle]:
         return [bundle for bundle in self.bundles if bundle.agent == agent]
 

@@ -19,14 +19,16 @@ from __future__ import annotations
 
 import os
 
-# The discovery server of domain d listens on 7400 + 250 d + 2: inside the domain's own block of
-# RTPS ports (offsets 0 and 1 are its multicast ports, 10 + 2 i and 11 + 2 i participant i's),
-# in a gap RTPS leaves unused, so fleets on one computer (one domain each) never collide.
-_PORT_BASE, _DOMAIN_GAIN, _SERVER_OFFSET = 7400, 250, 2
+# The discovery server of domain d listens on 7400 + 250 d + 2 + slot: inside the domain's own
+# block of RTPS ports (offsets 0 and 1 are its multicast ports, 10 + 2 i and 11 + 2 i participant
+# i's), in the gap 2..9 RTPS leaves unused, so fleets on one computer (one domain each) never
+# collide.  Slot 0 is the fleet's one server (`dds` transport); with `zenoh` every agent runs a
+# server of its own on its loopback, and agents sharing a computer need distinct slots.
+_PORT_BASE, _DOMAIN_GAIN, _SERVER_OFFSET, SERVER_SLOTS = 7400, 250, 2, 8
 
 
-def discovery_server_port(domain_id: int) -> int:
-    return _PORT_BASE + _DOMAIN_GAIN * domain_id + _SERVER_OFFSET
+def discovery_server_port(domain_id: int, slot: int = 0) -> int:
+    return _PORT_BASE + _DOMAIN_GAIN * domain_id + _SERVER_OFFSET + slot % SERVER_SLOTS
 
 
 def ros_environment(domain_id: int, base: dict[str, str] | None = None, discovery_server: str | None = None) -> dict[str, str]:

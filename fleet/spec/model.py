@@ -116,9 +116,9 @@ class Ros(Strict):
     domain_id: int = Field(0, ge=0, le=232)
     use_sim_time: bool = True
     # How ROS traffic crosses computers (docs/multi-computer.md): `dds`, nodes talking DDS
-    # directly, found through the fleet's discovery server.  (A Zenoh-carried transport for
-    # Wi-Fi and WAN links is planned; until it exists, the spec refuses the name.)
-    transport: Literal["dds"] = "dds"
+    # directly, found through the fleet's discovery server; `zenoh`, DDS kept on each computer
+    # and the topics that cross carried by the agents' bridges over the fleet's Zenoh network.
+    transport: Literal["dds", "zenoh"] = "dds"
 
 
 class Agent(Strict):

@@ -466,7 +466,7 @@ class FleetHandle:
         view = self.status()
         for row in view.robots:
             expected |= row.pids
-        expected |= {server["pid"] for server in view.discovery.values() if server.get("pid")}
+        expected |= view.service_pids
         leftovers = []
         for process in processes_marked(self.marker):
             if process.pid in expected:

@@ -132,3 +132,25 @@ def test_an_agent_address_that_is_not_an_address_is_one_line_and_exit_2():
                            "--connect", "tcp/127.0.0.1:1"], capture_output=True, text=True, timeout=60)  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.strip() == "fleet: error: --address: '10.0.0.300' is not an IPv4 address (such as 10.0.0.5)"
+
+
+def test_zenoh_bridges_carry_each_remote_robot_both_ways_and_the_clock():
+    from fleet.dataplane.topics import bridge_routes
+
+    routes = bridge_routes("sim", [("a1", "/a1", "rack_a"), ("w1", "/w1", "sim"), ("b1", "/fleet/b1", "rack_b")])
+    names = {agent: ({r.name for r in route.exports}, {r.name for r in route.imports}) for agent, route in routes.items()}
+    assert names["sim"] == ({"/clock", "/a1/odom", "/a1/scan", "/a1/ground_truth", "/fleet/b1/odom", "/fleet/b1/scan",
+                             "/fleet/b1/ground_truth"},
+                            {"/a1/cmd_vel", "/a1/battery", "/fleet/b1/cmd_vel", "/fleet/b1/battery"})  # fmt: skip
+    assert names["rack_a"] == ({"/a1/cmd_vel", "/a1/battery"}, {"/clock", "/a1/odom", "/a1/scan", "/a1/ground_truth"})
+    assert not any("/w1/" in name for pair in names.values() for group in pair for name in group)  # same computer
+    assert bridge_routes("sim", [("w1", "/w1", "sim")]) == {"sim": p.BridgeRoutes()}
+    assert bridge_routes(None, [("a1", "/a1", "rack_a")]) == {}
+
+
+def test_with_zenoh_every_agent_gets_its_own_loopback_discovery_server():
+    from fleet.dataplane.discovery import local_servers
+
+    servers = local_servers(["sim", "rack_b", "rack_a"], 7)
+    assert servers["rack_a"] == f"127.0.0.1:{discovery_server_port(7, 0)}"
+    assert len(set(servers.values())) == 3 and all(s.startswith("127.0.0.1:") for s in servers.values())

@@ -169,7 +169,7 @@ def test_nodes_killed_many_times_leave_no_shared_memory_to_poison_dds(fleet):
     for round_ in range(6):
         fleet.kill_node(("robot1", "robot2")[round_ % 2], ("controller", "battery", "safety")[round_ % 3])
         view = fleet.wait_desired_state(timeout=60)  # respawned: the next kill finds it running
-    pids = {pid for row in view.robots for pid in row.pids} | {d["pid"] for d in view.discovery.values() if d["pid"]}
+    pids = {pid for row in view.robots for pid in row.pids} | view.service_pids
     assert pids and not shared_memory_of(pids)
     fleet.deploy(sets=["robot1.controller.max_speed=0.3"])  # restarts robot1: new participants
     fleet.wait_desired_state(timeout=60)

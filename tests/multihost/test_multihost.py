@@ -69,6 +69,7 @@ class Fleet:
 
     def __init__(self, lan: Lan, root: Path):
         self.lan, self.root = lan, root
+        self.transport = "dds"
         self.endpoint = f"tcp/{lan.hosts['sim'].address}:{PORT}"
         self.processes: dict[str, subprocess.Popen] = {}
         self.env = dict(os.environ, FLEET_STATE_DIR=str(root / "state"), ROS_HOME=str(root / "ros"), PYTHONUNBUFFERED="1")
@@ -132,11 +133,12 @@ class Fleet:
                 process.wait()
 
 
-@pytest.fixture
-def fleet(lan, tmp_path, ros_domain):
-    spec = dict(SPEC, ros={"domain_id": ros_domain, "use_sim_time": True})
+@pytest.fixture(params=["dds", "zenoh"])
+def fleet(request, lan, tmp_path, ros_domain):
+    spec = dict(SPEC, ros={"domain_id": ros_domain, "use_sim_time": True, "transport": request.param})
     (tmp_path / "lan.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     running = Fleet(lan, tmp_path)
+    running.transport = request.param
     running.start()
     try:
         yield running
@@ -175,7 +177,14 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     assert deploy.returncode == 0, deploy.stdout + deploy.stderr + fleet.log_tails()
     assert "fleet up" in deploy.stdout
     status = fleet.status()
-    assert status["discovery"]["lan"]["agent"] == "sim_host" and status["discovery"]["lan"]["pid"]
+    servers = {d["agent"]: d for d in status["discovery"]["lan"]}
+    if fleet.transport == "dds":  # one server, on the world's computer, for every participant
+        assert list(servers) == ["sim_host"] and servers["sim_host"]["pid"]
+        assert servers["sim_host"]["server"].startswith(fleet.lan.hosts["sim"].address + ":")
+    else:  # DDS stays on each computer; every agent bridges what crosses
+        assert set(servers) == {"sim_host", "rack_a", "rack_b"}
+        assert all(d["server"].startswith("127.0.0.1:") and d["pid"] for d in servers.values())
+        assert set(status["bridges"]["lan"]) == {"sim_host", "rack_a", "rack_b"} and all(status["bridges"]["lan"].values())
     assert {row["name"]: row["state"] for row in status["robots"]} == dict.fromkeys(("world", *ROBOTS), "running")
 
     # Every robot moves.
@@ -203,7 +212,7 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     world_pid = next(node["pid"] for row in fleet.status()["robots"] if row["name"] == "world" for node in row["nodes"])
     os.kill(world_pid, signal.SIGSTOP)
     try:
-        frozen = fleet.wait(lambda robots: all(robots[name]["state"] == "degraded" for name in ROBOTS), 15,
+        frozen = fleet.wait(lambda robots: all(robots.get(name, {}).get("state") == "degraded" for name in ROBOTS), 15,
                             "every robot degraded while the world is frozen")
         assert all("/clock" in frozen[name]["reason"] for name in ROBOTS), frozen
         table = fleet.fleet("status")
@@ -215,17 +224,17 @@ def test_fleet_across_three_computers(fleet, tmp_path):
         assert "timed out" in deploy.stdout and "a2 " in why and "/clock" in why, deploy.stdout
     finally:
         os.kill(world_pid, signal.SIGCONT)
-    fleet.wait(lambda robots: all(robots[name]["state"] == "running" for name in ROBOTS), 30,
+    fleet.wait(lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ROBOTS), 30,
                "every robot running again once the world runs")
 
     # A pulled cable: rack_b's robots stop being running, with the reason; back when plugged in.
     fleet.lan.set_link("rack_b", False)
     try:
-        cut = fleet.wait(lambda robots: all(robots[name]["state"] != "running" for name in ("b1", "b2")), 15,
+        cut = fleet.wait(lambda robots: all(robots.get(name, {}).get("state", "running") != "running" for name in ("b1", "b2")), 15,
                          "rack_b's robots shown not running while its cable is out")
         assert all(cut[name]["reason"] for name in ("b1", "b2")), cut
         assert cut["a2"]["state"] == "running"
     finally:
         fleet.lan.set_link("rack_b", True)
-    fleet.wait(lambda robots: all(robots[name]["state"] == "running" for name in ROBOTS), 60,
+    fleet.wait(lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ROBOTS), 60,
                "rack_b's robots running again once its cable is back")

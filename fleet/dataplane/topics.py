@@ -1,0 +1,59 @@
+"""Which ROS topics cross computers, and which way (pure).
+
+The world owns, per robot, what the world publishes (odom, scan, ground_truth) and what it takes
+(cmd_vel, battery), plus the fleet-wide /clock.  With the `zenoh` transport a robot on another
+agent than the world's gets the world's side of its topics through the two agents' bridges,
+and the world gets the robot's side the same way.  Robots on the world's agent need no bridge.
+QoS below is that of the publishers (fleet/world/ros_bridge.py, fleet_nodes), which the
+receiving bridge republishes with, so subscribers match as they would locally.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from fleet.control.protocol import BridgeRoutes, TopicRoute
+
+
+@dataclass(frozen=True)
+class Crossing:
+    suffix: str  # after the robot's namespace
+    type: str
+    from_world: bool  # published by the world (else by the robot's nodes)
+    reliable: bool = True
+    depth: int = 10
+
+
+ROBOT_TOPICS = (
+    Crossing("odom", "nav_msgs/msg/Odometry", from_world=True),
+    Crossing("scan", "sensor_msgs/msg/LaserScan", from_world=True),
+    Crossing("ground_truth", "geometry_msgs/msg/PoseStamped", from_world=True),
+    Crossing("cmd_vel", "geometry_msgs/msg/Twist", from_world=False),
+    Crossing("battery", "sensor_msgs/msg/BatteryState", from_world=False),
+)
+CLOCK = TopicRoute(name="/clock", type="rosgraph_msgs/msg/Clock")
+
+
+def bridge_routes(world_agent: str | None, robots: list[tuple[str, str, str]]) -> dict[str, BridgeRoutes]:
+    """agent -> the topics its bridge exports and imports.
+
+    `robots`: (name, namespace, agent) of every robot of the fleet."""
+    routes: dict[str, BridgeRoutes] = {}
+    if world_agent is None:
+        return routes
+    world = routes.setdefault(world_agent, BridgeRoutes())
+    remote_agents = sorted({agent for _, _, agent in robots if agent != world_agent})
+    if remote_agents:
+        world.exports.append(CLOCK)
+    for agent in remote_agents:
+        routes.setdefault(agent, BridgeRoutes()).imports.append(CLOCK)
+    for _, namespace, agent in sorted(robots):
+        if agent == world_agent:
+            continue
+        robot = routes[agent]
+        for crossing in ROBOT_TOPICS:
+            route = TopicRoute(name=f"{namespace.rstrip('/')}/{crossing.suffix}", type=crossing.type,
+                               reliable=crossing.reliable, depth=crossing.depth)  # fmt: skip
+            (world.exports if crossing.from_world else world.imports).append(route)
+            (robot.imports if crossing.from_world else robot.exports).append(route)
+    return routes
