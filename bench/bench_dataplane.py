@@ -218,7 +218,7 @@ def main() -> int:
             print(label, converged, flush=True)
             rows_discovery.append((label, converged))
     lines = [
-        "# Data plane: topics across computers (`dds` transport)", "",
+        "# Data plane: topics across computers (`dds` and `zenoh` transports)", "",
         f"Machine: {machine_description()}.", f"Command: `.venv/bin/python bench/bench_dataplane.py --seconds {args.seconds:g}`.", "",
         "One sender process publishes every robot's topics; with 100 robots, four receiver processes",
         "take 25 robots each. Delivered: messages received over messages published. Latency is one-way",
