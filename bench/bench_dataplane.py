@@ -10,6 +10,8 @@ is measured for comparison.  Runs:
 - latency: one robot's odometry (50 Hz, reliable), one-way p50/p99 from header stamps;
 - throughput: 100 robots' odometry (50 Hz, reliable) and scans (10 Hz, 360 beams, best effort)
   from one process to another: delivered fraction and latency;
+- world RTF: 100 light robots as fast as possible, their topics taken on the same or the other
+  computer;
 - discovery: 30 robot participants and a world participant: seconds until the world has
   matched every robot's subscription (LOCALHOST on one computer, discovery server on one and
   across two, LOCALHOST with ROS_STATIC_PEERS across two).
@@ -34,7 +36,7 @@ import psutil
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.machine import machine_description  # noqa: E402
-from fleet.control.protocol import TopicRoute  # noqa: E402
+from fleet.dataplane.topics import TopicRoute  # noqa: E402
 from fleet.dataplane.discovery import ServiceProcess, server_command, server_environment  # noqa: E402
 from fleet.runtime.environment import discovery_server_port, ros_environment  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id  # noqa: E402
@@ -183,6 +185,30 @@ def discovery(setup: Setup, robots: int, where: str) -> float | None:
     return None if at is None else at - launched
 
 
+WORLD_BENCH = Path(__file__).resolve().parent / "bench_world.py"
+
+
+def world_rtf(setup: Setup, robots: int, sim: float, where: str) -> float | None:
+    """RTF of a world of `robots` light robots on sim (as fast as possible, bench_world's child)
+    while four processes on `where` ("a": the same computer, "b": the other) take every robot's
+    odometry and scans."""
+    share = robots // 4
+    receivers = [subprocess.Popen(setup.side(where, "receive", str(share), str(sim), str(first), "robot"),
+                                  env=setup.env_b, stdout=subprocess.PIPE, text=True)
+                 for first in range(1, robots + 1, share)]  # fmt: skip
+    time.sleep(3.0)
+    command = [sys.executable, str(WORLD_BENCH), "--child", "light", str(robots), str(sim)]
+    if setup.lan is not None:
+        command = setup.lan.hosts["sim"].command(*command)
+    done = subprocess.run(command, env=setup.env, capture_output=True, text=True, timeout=900)
+    for receiver in receivers:
+        receiver.communicate(timeout=200)
+    for line in done.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[7:])["rtf"]
+    return None
+
+
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seconds", type=float, default=20.0)
@@ -204,6 +230,16 @@ def main() -> int:
                     rows_flow.append((label, robots, result))
             finally:
                 setup.close()
+        setup = Setup("world", domain, lan)
+        rows_rtf = []
+        try:
+            for label, where in (("world and robots' subscribers on one computer", "a"),
+                                 ("subscribers on the other computer", "b")):
+                rtf = world_rtf(setup, 100, 20.0, where)
+                print(label, rtf, flush=True)
+                rows_rtf.append((label, rtf))
+        finally:
+            setup.close()
         for label, network, with_server, static in (
             ("one computer, LOCALHOST", None, False, False),
             ("one computer, discovery server", None, True, False),
@@ -234,6 +270,10 @@ def main() -> int:
     lines += ["", "Discovery of 30 robot participants by a world participant:", "", "| setup | seconds to match all |", "|---|---|"]
     for label, converged in rows_discovery:
         lines.append(f"| {label} | {'not converged in 120 s' if converged is None else f'{converged:.1f}'} |")
+    lines += ["", "World with 100 light robots (as fast as possible, 20 s of sim time, `dds`), every robot's",
+              "odometry and scans taken by four subscriber processes:", "", "| where the subscribers run | RTF |", "|---|---|"]
+    for label, rtf in rows_rtf:
+        lines.append(f"| {label} | {'failed' if rtf is None else f'{rtf:.2f}'} |")
     args.output.write_text("\n".join(lines) + "\n")
     print(f"wrote {args.output}")
     return 0

@@ -1,13 +1,14 @@
 """One side of a data-plane benchmark, run as its own process (in a network namespace or not).
 
     python bench/dataplane_peer.py send ROBOTS SECONDS [FIRST]     # /rK/odom (50 Hz, reliable), /rK/scan (10 Hz, best effort)
-    python bench/dataplane_peer.py receive ROBOTS SECONDS [FIRST]  # prints one JSON line: latencies and counts
+    python bench/dataplane_peer.py receive ROBOTS SECONDS [FIRST [PREFIX]]  # prints one JSON line: latencies and counts
     python bench/dataplane_peer.py participant K SECONDS           # a robot's participant for the discovery benchmark
     python bench/dataplane_peer.py observe ROBOTS SECONDS          # prints the wall time when it matched every robot
 
 A sender first waits until every topic has matched a subscriber, then publishes for SECONDS and
 prints how many messages it sent; a receiver counts everything it gets until the sender's data
-stops.  Robots FIRST .. FIRST+ROBOTS-1 (several receivers share the robots of one sender).
+stops.  Robots FIRST .. FIRST+ROBOTS-1 (several receivers share the robots of one sender), in
+namespaces /<PREFIX><index> (default prefix "r").
 
 The discovery environment (ROS_DISCOVERY_SERVER or LOCALHOST) comes from the caller.  Latency is
 one-way: header stamps are CLOCK_REALTIME, which network namespaces on one machine share.
@@ -69,7 +70,7 @@ def send(node, robots: range, seconds: float) -> None:
     time.sleep(QUIET + 2)  # reliable data still in flight is resent by this writer
 
 
-def receive(node, robots: range, seconds: float) -> None:
+def receive(node, robots: range, seconds: float, prefix: str = "r") -> None:
     latencies: list[float] = []
     counts = {"odom": 0, "scan": 0}
     last = [time.monotonic()]
@@ -83,8 +84,8 @@ def receive(node, robots: range, seconds: float) -> None:
         return callback
 
     for k in robots:
-        node.create_subscription(Odometry, f"/r{k}/odom", on("odom"), RELIABLE)
-        node.create_subscription(LaserScan, f"/r{k}/scan", on("scan"), BEST_EFFORT)
+        node.create_subscription(Odometry, f"/{prefix}{k}/odom", on("odom"), RELIABLE)
+        node.create_subscription(LaserScan, f"/{prefix}{k}/scan", on("scan"), BEST_EFFORT)
     deadline = time.monotonic() + MATCH_TIMEOUT + seconds + 60
     while time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.05)
@@ -121,6 +122,8 @@ def main(argv: list[str]) -> int:
     try:
         if role == "participant":
             participant(node, number, seconds)
+        elif role == "receive" and len(argv) > 4:
+            receive(node, range(first, first + number), seconds, argv[4])
         else:
             {"send": send, "receive": receive, "observe": observe}[role](node, range(first, first + number), seconds)
     finally:

@@ -33,6 +33,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from fleet.dataplane.topics import BridgeRoutes
+
 VERSION = 1
 
 # Limits: far above a real robot's launch description, far below what could hurt an agent.
@@ -114,11 +116,6 @@ def plan_key(fleet: str) -> str:
 def desired_key(fleet: str, agent: str) -> str:
     """The router keeps the latest apply of each agent here, for agents that were away."""
     return f"fleet/{fleet}/desired/{agent}"
-
-
-def data_key(fleet: str, topic: str) -> str:
-    """Where the `zenoh` transport carries a ROS topic ("/robot1/odom" -> fleet/f/data/robot1/odom)."""
-    return f"fleet/{fleet}/data/{topic.strip('/')}"
 
 
 def alive_key(fleet: str, agent: str) -> str:
@@ -242,27 +239,6 @@ def hot_digest(files: dict[str, str], hot_files: list[str]) -> str:
     for name in sorted(hot_files):
         h.update(name.encode() + b"\0" + files.get(name, "").encode() + b"\0")
     return h.hexdigest()
-
-
-class TopicRoute(BaseModel):
-    """One ROS topic a Zenoh bridge carries (fleet.dataplane.topics makes them)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    name: str = Field(pattern=r"^(/[A-Za-z_][A-Za-z0-9_]{0,62}){1,8}$")
-    type: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z_][A-Za-z0-9_]*$")
-    reliable: bool = True
-    transient_local: bool = False
-    depth: int = Field(10, ge=1, le=1000)
-
-
-class BridgeRoutes(BaseModel):
-    """What an agent's Zenoh bridge sends out (local ROS -> Zenoh) and brings in (Zenoh -> local ROS)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    exports: list[TopicRoute] = Field([], max_length=4 * MAX_BUNDLES + 8)
-    imports: list[TopicRoute] = Field([], max_length=4 * MAX_BUNDLES + 8)
 
 
 class ApplyRequest(Message):

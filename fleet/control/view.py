@@ -231,11 +231,13 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSumma
         world_problem = f"the world is {world.state}" + (f" ({world.reason})" if world.reason else "")
     elif summary is None:
         world_problem = "the world has not reported yet"
+        if _young(world):
+            world.state, world.reason = "starting", "waiting for its first report"
+        else:
+            world.state, world.reason = "degraded", "it has not reported its state (see `fleet logs world`)"
     elif summary.age is not None and summary.age > WORLD_SILENT:
         world_problem = f"no /clock from the world for {summary.age:.0f} s (world not advancing)"
         world.state, world.reason = "degraded", f"not advancing: no report for {summary.age:.0f} s (frozen or stuck?)"
-    if world.state == "running" and summary is None and _young(world):
-        world.state, world.reason = "starting", "waiting for the world's first report"
     for row in rows:
         if row.kind != "robot" or row.state != "running":
             continue

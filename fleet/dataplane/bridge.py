@@ -47,7 +47,7 @@ class Bridge:
     def __init__(self, fleet: str, exports, imports, session, node) -> None:
         import zenoh
 
-        from fleet.control.protocol import data_key
+        from fleet.dataplane.topics import data_key
 
         self.counts = {"out": 0, "in": 0}
         self._keep = []  # Zenoh publishers and subscribers live as long as the bridge
@@ -80,7 +80,7 @@ class Bridge:
 
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s fleet.bridge %(levelname)s %(message)s")
-    from fleet.control.protocol import BridgeRoutes
+    from fleet.dataplane.topics import BridgeRoutes
     from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
 
     try:

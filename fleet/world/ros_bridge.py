@@ -106,7 +106,8 @@ class RobotChannel:
         never received) and the subscriptions matched to its odom (its nodes, once discovered)."""
         wall = self.command.wall
         return {
-            "cmd_age": None if wall == -math.inf else round(time.monotonic() - wall, 2),
+            # max(): a command stamped in the future (a benchmark's "never expires") is fresh
+            "cmd_age": None if wall == -math.inf else round(max(0.0, time.monotonic() - wall), 2),
             "odom_subscribers": self.odom_pub.get_subscription_count(),
         }
 

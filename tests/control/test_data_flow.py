@@ -76,6 +76,14 @@ def test_a_robot_the_world_did_not_spawn_says_why():
     assert got["r2"] == ("degraded", "robot 'r2' not spawned: overlaps obstacle 'crate'")
 
 
+def test_a_world_that_never_reports_is_degraded_and_so_are_its_robots():
+    got = rows(status("sim", [unit("world")]), status("rack", [unit("r1")]))
+    assert got["world"] == ("degraded", "it has not reported its state (see `fleet logs world`)")
+    assert got["r1"] == ("degraded", "the world has not reported yet")
+    young = rows(status("sim", [unit("world", uptime=2.0)]), status("rack", [unit("r1", uptime=2.0)]))
+    assert young["world"][0] == "starting" and young["r1"][0] == "starting"
+
+
 def test_without_a_world_processes_decide():
     assert rows(status("rack", [unit("r1")])) == {"r1": ("running", "")}
 
