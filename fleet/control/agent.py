@@ -4,12 +4,12 @@ Threads, and why:
 - Zenoh callbacks only hand the query to a small pool (`_requests`): a slow callback stalls the
   whole session.  Pool threads decode, validate, persist and reply.
 - One reconcile thread starts and stops units, so applies are carried out one at a time and in
-  order.
-- One services thread runs each fleet's helper processes here, restarting them if they die:
-  the DDS discovery server when the fleet names this agent its host, the Zenoh bridge when the
-  fleet's transport is `zenoh` (fleet.dataplane).  (Node processes die with the agent, even on SIGKILL: the runner's session threads
+  order.  (Node processes die with the agent, even on SIGKILL: the runner's session threads
   fork them with PR_SET_PDEATHSIG.  Leftovers of anything else are found by their environment
   marker when the agent starts again.)
+- One services thread runs each fleet's helper processes here, restarting them if they die:
+  the DDS discovery server when the fleet names this agent its host, the Zenoh bridge when the
+  fleet's transport is `zenoh` (fleet.dataplane).  They too die with the agent.
 - The main thread owns the Zenoh session: it opens it (retrying while no router answers; robots
   keep running meanwhile) and closes it on shutdown.  Zenoh reconnects a client by itself when
   the router comes back, re-declaring queryables and liveliness tokens.  Every few seconds it
