@@ -78,6 +78,15 @@ class Bridge:
         return receive
 
 
+def _spin(executor) -> None:
+    from rclpy.executors import ExternalShutdownException
+
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+
+
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s fleet.bridge %(levelname)s %(message)s")
     from fleet.dataplane.topics import BridgeRoutes
@@ -109,8 +118,11 @@ def main(argv: list[str]) -> int:
         bridge = Bridge(fleet, routes.exports, routes.imports, session, node)
         log.info("bridge of fleet %s: %d topics out, %d in, through %s", fleet, len(routes.exports),
                  len(routes.imports), ", ".join(connect))  # fmt: skip
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.2)
+        # spin() handles every ready callback of one wait; a spin_once loop would rebuild the wait
+        # set (hundreds of subscriptions) for each message.
+        spinner = threading.Thread(target=_spin, args=(executor,), name="fleet-bridge-ros", daemon=True)
+        spinner.start()
+        stop.wait()
         log.info("bridge of fleet %s stopping: %d messages out, %d in", fleet, bridge.counts["out"], bridge.counts["in"])
     finally:
         executor.shutdown(timeout_sec=1.0)
