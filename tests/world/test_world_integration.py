@@ -165,3 +165,32 @@ def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env):
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and "unknown model type 'tank'" in lines[0]
+
+
+def test_the_world_reports_each_robots_data_flow(ros_env):
+    """What `running` rests on: the age of a robot's last cmd_vel at the world (None before the
+    first, never negative or infinite: the status file must stay JSON) and its odom's subscribers."""
+    from geometry_msgs.msg import Twist
+    from nav_msgs.msg import Odometry
+
+    from fleet.testing.ros import RosProbe
+    from fleet.world.description import RobotSpec
+    from fleet.world.ros_bridge import Command, RosBridge
+
+    bridge = RosBridge([])
+    try:
+        channel = bridge.add_robot(RobotSpec(name="r1", namespace="/r1"))
+        assert channel.link() == {"cmd_age": None, "odom_subscribers": 0}
+        with RosProbe() as probe:
+            probe.subscribe("/r1/odom", Odometry)
+            deadline = time.monotonic() + 20
+            while channel.link()["cmd_age"] is None or not channel.link()["odom_subscribers"]:
+                assert time.monotonic() < deadline, f"no command or subscriber seen: {channel.link()}"
+                probe.publish("/r1/cmd_vel", Twist())
+                probe.executor.spin_once(timeout_sec=0.1)
+            assert 0.0 <= channel.link()["cmd_age"] < 5.0
+        channel.command = Command(0.5, 0.0, math.inf, math.inf)  # a benchmark's never-expiring command
+        json.dumps(channel.link(), allow_nan=False)
+        assert channel.link()["cmd_age"] == 0.0
+    finally:
+        bridge.close()
