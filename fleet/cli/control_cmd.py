@@ -28,6 +28,7 @@ def register(app: typer.Typer) -> None:
     app.command("deploy")(deploy)
     app.command("diff")(diff)
     app.command("status")(status)
+    app.command("ros-env")(ros_env)
     app.command("logs")(logs)
     param_app = typer.Typer(help="Read or change a node's ROS parameter live, through its agent.", no_args_is_help=True)
     param_app.command("get")(param_get)
@@ -391,6 +392,51 @@ def status(
         _print_view(view, console())
     if not view.all_running:
         raise typer.Exit(1)
+
+
+def ros_env(
+    fleet: Optional[str] = typer.Option(None, "--fleet", "-f", help="The fleet (needed when several run)."),
+    agent: Optional[str] = typer.Option(None, "--agent", "-a", help="zenoh transport: the agent on this computer."),
+    connect: Optional[str] = ConnectOption,
+    zenoh_config: Optional[Path] = ZenohConfigOption,
+) -> None:
+    """Print the environment that lets ROS tools (ros2 topic, rviz2) see a fleet's whole graph:
+    `eval "$(fleet ros-env)"`."""
+    from fleet.control.view import build_view
+
+    with _client(connect, zenoh_config) as client:
+        view = build_view(*client.status(fleet), time.time())
+    env = tool_environment(view, fleet, agent)
+    typer.echo("export " + " ".join(f"{key}={value}" for key, value in env.items()))
+
+
+def tool_environment(view, fleet: str | None, agent: str | None) -> dict[str, str]:
+    """ROS_DOMAIN_ID, ROS_DISCOVERY_SERVER (the fleet's server; with the zenoh transport the one of
+    `agent`, whose computer this must be) and ROS_SUPER_CLIENT: a plain client would see only the
+    topics it uses itself.  One clear error when the fleet or the server is ambiguous (pure)."""
+    from fleet.errors import ControlError, FleetError
+
+    fleets = sorted(view.domain_ids)
+    if fleet is None:
+        if len(fleets) != 1:
+            raise FleetError("no fleet is deployed" if not fleets else f"several fleets run ({', '.join(fleets)}): pick one with --fleet")
+        fleet = fleets[0]
+    if fleet not in view.domain_ids:
+        raise ControlError(f"fleet {fleet} is not deployed (see `fleet status`)")
+    servers = {server["agent"]: server["server"] for server in view.discovery.get(fleet, [])}
+    if agent is not None:
+        if agent not in servers:
+            raise FleetError(f"agent {agent} runs no discovery server of fleet {fleet} (those that do: {', '.join(sorted(servers)) or 'none'})")
+        server = servers[agent]
+    elif len(servers) == 1:
+        server = next(iter(servers.values()))
+    elif not servers:
+        raise ControlError(f"no discovery server of fleet {fleet} answers (is its world's agent online?)")
+    else:
+        raise FleetError(f"fleet {fleet} uses the zenoh transport: every computer has its own DDS; "
+                         f"pick the agent on this one with --agent ({', '.join(sorted(servers))})")  # fmt: skip
+    return {"ROS_DOMAIN_ID": str(view.domain_ids[fleet]), "ROS_DISCOVERY_SERVER": server, "ROS_SUPER_CLIENT": "TRUE",
+            "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}  # fmt: skip
 
 
 def _print_view(view, out, agents: bool = True) -> None:

@@ -162,3 +162,22 @@ def test_with_zenoh_every_agent_gets_its_own_loopback_discovery_server():
     servers = local_servers(["sim", "rack_b", "rack_a"], 7)
     assert servers["rack_a"] == f"127.0.0.1:{discovery_server_port(7, 0)}"
     assert len(set(servers.values())) == 3 and all(s.startswith("127.0.0.1:") for s in servers.values())
+
+
+def test_ros_tools_get_the_fleets_domain_and_discovery_server():
+    from fleet.cli.control_cmd import tool_environment
+    from fleet.control.view import FleetView
+    from fleet.errors import FleetError
+
+    view = FleetView(agents=[], robots=[], domain_ids={"f": 7},
+                     discovery={"f": [{"agent": "sim", "server": "10.0.0.1:9152", "pid": 1}]})  # fmt: skip
+    assert tool_environment(view, None, None) == {"ROS_DOMAIN_ID": "7", "ROS_DISCOVERY_SERVER": "10.0.0.1:9152",
+                                                  "ROS_SUPER_CLIENT": "TRUE", "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
+    zenoh = FleetView(agents=[], robots=[], domain_ids={"f": 7},
+                      discovery={"f": [{"agent": "a", "server": "127.0.0.1:9152", "pid": 1},
+                                       {"agent": "b", "server": "127.0.0.1:9153", "pid": 2}]})  # fmt: skip
+    with pytest.raises(FleetError, match="pick the agent on this one with --agent"):
+        tool_environment(zenoh, "f", None)
+    assert tool_environment(zenoh, "f", "b")["ROS_DISCOVERY_SERVER"] == "127.0.0.1:9153"
+    with pytest.raises(FleetError, match="several fleets"):
+        tool_environment(FleetView(agents=[], robots=[], domain_ids={"f": 1, "g": 2}), None, None)

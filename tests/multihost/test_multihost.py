@@ -53,6 +53,15 @@ SPEC = {
     ],
 }  # fmt: skip
 ROBOTS = ("a1", "a2", "b1", "b2")
+LIST_TOPICS = """
+import time, rclpy
+rclpy.init()
+node = rclpy.create_node("graph_lister")
+end = time.monotonic() + 5
+while time.monotonic() < end:
+    rclpy.spin_once(node, timeout_sec=0.2)
+print(sorted(name for name, _ in node.get_topic_names_and_types()))
+"""
 
 
 @pytest.fixture
@@ -186,6 +195,17 @@ def test_fleet_across_three_computers(fleet, tmp_path):
         assert all(d["server"].startswith("127.0.0.1:") and d["pid"] for d in servers.values())
         assert set(status["bridges"]["lan"]) == {"sim_host", "rack_a", "rack_b"} and all(status["bridges"]["lan"].values())
     assert {row["name"]: row["state"] for row in status["robots"]} == dict.fromkeys(("world", *ROBOTS), "running")
+
+    # ROS tools on rack_a, with `fleet ros-env`, see the graph: all of it with dds; with zenoh
+    # only this computer's DDS (a1's and a2's nodes, and what the bridge brings in for them).
+    args = ["ros-env"] + ([] if fleet.transport == "dds" else ["--agent", "rack_a"])
+    exports = fleet.fleet(*args)
+    assert exports.returncode == 0 and exports.stdout.startswith("export "), exports.stdout + exports.stderr
+    tool_env = dict(pair.split("=", 1) for pair in exports.stdout.split()[1:])
+    graph = subprocess.run(fleet.lan.hosts["rack_a"].command(sys.executable, "-c", LIST_TOPICS),
+                           env={**fleet.env, **tool_env}, capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert "/a1/odom" in graph.stdout and "/clock" in graph.stdout, graph.stdout + graph.stderr
+    assert ("/b1/cmd_vel" in graph.stdout) == (fleet.transport == "dds"), graph.stdout
 
     # Every robot moves.
     before = poses(fleet.robots())
