@@ -37,7 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.machine import machine_description  # noqa: E402
 from fleet.dataplane.topics import TopicRoute  # noqa: E402
-from fleet.dataplane.discovery import ServiceProcess, server_command, server_environment  # noqa: E402
+from fleet.dataplane.discovery import server_command, server_environment  # noqa: E402
+from fleet.runtime.processes import ServiceProcess  # noqa: E402
 from fleet.runtime.environment import discovery_server_port, ros_environment  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id  # noqa: E402
 from fleet.testing.netns import Lan, netns_problem  # noqa: E402

@@ -369,7 +369,8 @@ class Agent:
         return wanted
 
     def _service(self, fleet: str, kind: str, key: str, request: p.ApplyRequest):
-        from fleet.dataplane.discovery import ServiceProcess, discovery_server
+        from fleet.dataplane.discovery import discovery_server
+        from fleet.runtime.processes import ServiceProcess
 
         directory = self.store.root / "services"
         if kind == "discovery":

@@ -1,1 +1,1 @@
-"""How a fleet's ROS traffic crosses computers: DDS discovery through a per-fleet server."""
+"""How a fleet's ROS traffic crosses computers: DDS discovery servers and the Zenoh bridge."""

@@ -10,18 +10,14 @@ reaches the router from), its port follows from the fleet's domain id.
 
 from __future__ import annotations
 
-import logging
 import os
 import shutil
-import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from fleet.runtime.environment import discovery_server_port
-from fleet.runtime.processes import die_with_parent, signal_group
-
-log = logging.getLogger("fleet.discovery")
+from fleet.runtime.processes import ServiceProcess
 
 SERVER_PROGRAM = "fast-discovery-server"  # ships in the ROS wheels (package ros-fastrtps)
 
@@ -81,53 +77,6 @@ def server_command(server: str) -> list[str]:
 def server_environment(env: dict[str, str]) -> dict[str, str]:
     """`env` with the library path the server executable needs."""
     return {**env, "LD_LIBRARY_PATH": _library_path(env)}
-
-
-class ServiceProcess:
-    """One long-running helper process of a fleet (a discovery server, a Zenoh bridge),
-    restarted when it dies; output appended to `log_file`.
-
-    Start it from a thread that lives as long as the process should: it dies with that thread
-    (PR_SET_PDEATHSIG), so a killed agent leaves nothing behind."""
-
-    def __init__(self, key: str, command: list[str], env: dict[str, str], log_file: Path):
-        self.key = key  # what it is for, compared to decide a restart ("address:port", a config digest)
-        self.command = command
-        self.env = dict(env)
-        self.log_file = log_file
-        self.process: subprocess.Popen | None = None
-        self.starts = 0
-
-    @property
-    def pid(self) -> int | None:
-        process = self.process
-        return process.pid if process is not None and process.poll() is None else None
-
-    def keep_running(self) -> None:
-        """Start the process if it is not running (first call, or it exited)."""
-        if self.process is not None and self.process.poll() is None:
-            return
-        if self.process is not None:
-            log.warning("%s exited with %s: starting it again", self.command[0], self.process.returncode)
-        self.log_file.parent.mkdir(parents=True, exist_ok=True)
-        with open(self.log_file, "ab") as output:
-            self.process = subprocess.Popen(
-                self.command, env=self.env, stdin=subprocess.DEVNULL, stdout=output, stderr=subprocess.STDOUT,
-                start_new_session=True, preexec_fn=die_with_parent, close_fds=True,
-            )  # fmt: skip
-        self.starts += 1
-        log.info("started %s (pid %d)", " ".join(self.command[:4]), self.process.pid)
-
-    def stop(self) -> None:
-        process, self.process = self.process, None
-        if process is None or process.poll() is not None:
-            return
-        signal_group(process.pid, 15)
-        try:
-            process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            signal_group(process.pid, 9)
-            process.wait()
 
 
 def discovery_server(server: str, env: dict[str, str], log_file: Path) -> ServiceProcess:

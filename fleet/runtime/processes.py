@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import logging
 import os
 import signal
 import subprocess
 from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import IO
 
 _PR_SET_PDEATHSIG = 1
+_log = logging.getLogger("fleet.processes")
 
 # Resolved once in the parent: the child, between fork and exec, only makes the call.
 _libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
@@ -24,24 +28,25 @@ _prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
 _prctl.restype = ctypes.c_int
 
 
-def die_with_parent() -> None:
+def _die_with_parent() -> None:
     _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     # The supervisor may have died between fork and prctl: then we were re-parented already.
     if os.getppid() == 1:
         os._exit(1)
 
 
-def spawn(cmd: Sequence[str], env: Mapping[str, str], cwd: str | None = None) -> subprocess.Popen:
-    """Start `cmd` in a new session, stdout and stderr merged into one pipe, stdin closed."""
+def spawn(cmd: Sequence[str], env: Mapping[str, str], cwd: str | None = None, output: IO | None = None) -> subprocess.Popen:
+    """Start `cmd` in a new session, stdout and stderr merged into one pipe (or into `output`,
+    an open file), stdin closed."""
     return subprocess.Popen(
         list(cmd),
         env=dict(env),
         cwd=cwd,
         stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
+        stdout=subprocess.PIPE if output is None else output,
         stderr=subprocess.STDOUT,
         start_new_session=True,
-        preexec_fn=die_with_parent,
+        preexec_fn=_die_with_parent,
         close_fds=True,
     )
 
@@ -83,3 +88,45 @@ def group_exists(pgid: int) -> bool:
     if not signal_group(pgid, 0):
         return False
     return bool(group_members(pgid))
+
+
+class ServiceProcess:
+    """One long-running helper process (a fleet's discovery server, its Zenoh bridge), started
+    again when it has died; its output appended to `log_file`.
+
+    Call keep_running() from a thread that lives as long as the process should (see spawn)."""
+
+    def __init__(self, key: str, command: list[str], env: Mapping[str, str], log_file: Path):
+        self.key = key  # what it is for, compared by its owner to decide a restart
+        self.command = command
+        self.env = dict(env)
+        self.log_file = log_file
+        self.process: subprocess.Popen | None = None
+
+    @property
+    def pid(self) -> int | None:
+        process = self.process
+        return process.pid if process is not None and process.poll() is None else None
+
+    def keep_running(self) -> None:
+        """Start the process if it is not running (first call, or it exited)."""
+        if self.process is not None and self.process.poll() is None:
+            return
+        if self.process is not None:
+            _log.warning("%s exited with %s: starting it again", self.command[0], self.process.returncode)
+        self.log_file.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.log_file, "ab") as output:
+            self.process = spawn(self.command, self.env, output=output)
+        _log.info("started %s (pid %d)", " ".join(self.command[:4]), self.process.pid)
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """SIGTERM to its process group, SIGKILL after `timeout`."""
+        process, self.process = self.process, None
+        if process is None or process.poll() is not None:
+            return
+        signal_group(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            signal_group(process.pid, signal.SIGKILL)
+            process.wait()
