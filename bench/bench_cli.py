@@ -14,7 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.machine import machine_description  # noqa: E402
+from bench.machine import machine_description
 
 FLEET = Path(sys.executable).parent / "fleet"
 REPO = Path(__file__).resolve().parent.parent
@@ -39,8 +39,14 @@ def main() -> None:
         "fleet render --help": [str(FLEET), "render", "--help"],
         "fleet render fleets/two_robots.yaml --json": [str(FLEET), "render", "fleets/two_robots.yaml", "--json"],
     }
-    lines = ["# CLI start-up benchmark", "", f"Machine: {machine_description()}", "",
-             "| command | median (s) | min (s) | max (s) |", "|---|---|---|---|"]
+    lines = [
+        "# CLI start-up benchmark",
+        "",
+        f"Machine: {machine_description()}",
+        "",
+        "| command | median (s) | min (s) | max (s) |",
+        "|---|---|---|---|",
+    ]
     for label, command in cases.items():
         times = timed(command, args.runs)
         lines.append(f"| `{label}` | {statistics.median(times):.3f} | {min(times):.3f} | {max(times):.3f} |")

@@ -89,8 +89,11 @@ class ReadyWatcher:
         from fleet.testing.processes import processes_marked
 
         def nodes_left():
-            return [p for p in processes_marked(self.marker, BENCH_MARKER)
-                    if any(t.startswith("__node:=") for t in _cmdline(p))]  # fmt: skip
+            return [
+                p
+                for p in processes_marked(self.marker, BENCH_MARKER)
+                if any(t.startswith("__node:=") for t in _cmdline(p))
+            ]
 
         wait_until(lambda: not nodes_left(), timeout)
 
@@ -130,8 +133,13 @@ def direct_commands(spec: Path, root: Path, domain_id: int):
     for bundle in expansion.bundles:
         directory = root / "direct" / bundle.name
         bundle.write(directory)
-        plan = load_launch_file(directory / bundle.entry, {}, env=base, params_dir=directory / "params",
-                                ament_search_path=base["AMENT_PREFIX_PATH"])  # fmt: skip
+        plan = load_launch_file(
+            directory / bundle.entry,
+            {},
+            env=base,
+            params_dir=directory / "params",
+            ament_search_path=base["AMENT_PREFIX_PATH"],
+        )
         for node in plan.nodes:
             commands.append((node.cmd, {**base, **node.env}))
             fqns.add(node.fqn)
@@ -140,8 +148,11 @@ def direct_commands(spec: Path, root: Path, domain_id: int):
 
 def fallback_spec(cluster: Cluster, domain_id: int) -> Path:
     """Two robots with one real rclpy node each (the test template one_controller)."""
-    return cluster.spec(agents={"local": {}}, defaults={"template": "one_controller", "agent": "local"},
-                        robots=[{"name": "robot1"}, {"name": "robot2"}])  # fmt: skip
+    return cluster.spec(
+        agents={"local": {}},
+        defaults={"template": "one_controller", "agent": "local"},
+        robots=[{"name": "robot1"}, {"name": "robot2"}],
+    )
 
 
 def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
@@ -162,8 +173,10 @@ def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
             for _ in range(runs):
                 # The floor: the same processes, started directly and in parallel.
                 start = time.perf_counter()
-                processes = [subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                             for cmd, env in commands]  # fmt: skip
+                processes = [
+                    subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                    for cmd, env in commands
+                ]
                 seen = observer.wait_for(fqns, 60)
                 floors.append(seen - start if seen else float("nan"))
                 for process in processes:
@@ -173,8 +186,13 @@ def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
                 observer.wait_gone()
                 # fleet deploy, from the command's start.
                 start = time.perf_counter()
-                cli = subprocess.Popen(fleet(cluster, "deploy", str(spec), "--timeout", "60"), env=user_env(cluster.env),
-                                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+                cli = subprocess.Popen(
+                    fleet(cluster, "deploy", str(spec), "--timeout", "60"),
+                    env=user_env(cluster.env),
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.STDOUT,
+                    text=True,
+                )
                 exited = []
                 reader = threading.Thread(target=lambda: exited.append((cli.communicate()[0], time.perf_counter())))
                 reader.start()
@@ -188,8 +206,13 @@ def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
                 deploys.append(seen - start)
                 subprocess.run(fleet(cluster, "down", "--fleet", fleet_name), env=cluster.env, capture_output=True)
                 observer.wait_gone()
-            results["deploy"] = {"nodes": len(fqns), "floor": floors, "deploy": deploys, "cli_exit": cli_exits,
-                                 "spec": spec.name}
+            results["deploy"] = {
+                "nodes": len(fqns),
+                "floor": floors,
+                "deploy": deploys,
+                "cli_exit": cli_exits,
+                "spec": spec.name,
+            }
             # 2. no-op redeploy (fleet up and running).
             subprocess.run(fleet(cluster, "deploy", str(spec)), env=cluster.env, capture_output=True)
             noop = []
@@ -228,7 +251,7 @@ def bench_status(runs: int, results: dict) -> None:
                 query = []
                 for _ in range(runs * 4):
                     start = time.perf_counter()
-                    statuses, registries = client.status()
+                    statuses, _registries = client.status()
                     query.append(time.perf_counter() - start)
                     assert sum(len(s.robots) for s in statuses) == 100
             noop = []
@@ -244,7 +267,9 @@ def bench_status(runs: int, results: dict) -> None:
 def baseline(runs: int, results: dict) -> None:
     env = user_env(dict(os.environ))
     results["python_start"] = [timed([sys.executable, "-c", "pass"], env)[0] for _ in range(runs)]
-    results["python_start_no_reexec"] = [timed([sys.executable, "-c", "pass"], dict(os.environ))[0] for _ in range(runs)]
+    results["python_start_no_reexec"] = [
+        timed([sys.executable, "-c", "pass"], dict(os.environ))[0] for _ in range(runs)
+    ]
     results["fleet_help"] = [timed([sys.executable, "-m", "fleet", "--help"], env)[0] for _ in range(runs)]
 
 
@@ -275,10 +300,19 @@ def report(results: dict, runs: int) -> str:
     ]
     deploy = results.get("deploy")
     if "deploy_error" in results:
-        lines += ["", "Deploy of fleets/two_robots.yaml failed, so the deploy rows below use a stand-in fleet:",
-                  "two robots with one real rclpy node each (tests/control/data/templates/one_controller).",
-                  "The failure:", "", "```", results["deploy_error"].strip(), "```", "",
-                  "| measurement | median | range | target |", "|---|---|---|---|"]  # fmt: skip
+        lines += [
+            "",
+            "Deploy of fleets/two_robots.yaml failed, so the deploy rows below use a stand-in fleet:",
+            "two robots with one real rclpy node each (tests/control/data/templates/one_controller).",
+            "The failure:",
+            "",
+            "```",
+            results["deploy_error"].strip(),
+            "```",
+            "",
+            "| measurement | median | range | target |",
+            "|---|---|---|---|",
+        ]
     if deploy:
         floor = statistics.median(deploy["floor"])
         target = 1.3 * floor + 0.3
@@ -288,7 +322,9 @@ def report(results: dict, runs: int) -> str:
             f"| `fleet deploy` start until the command returned (all node processes running) | {med(deploy['cli_exit'])} | {spread(deploy['cli_exit'])} | |",
         ]
     if results.get("noop"):
-        lines.append(f"| no-op redeploy of {deploy['spec'] if deploy else 'the fleet'} (`fleet deploy`, CLI start-up included) | {med(results['noop'])} | {spread(results['noop'])} | < 0.3 s |")
+        lines.append(
+            f"| no-op redeploy of {deploy['spec'] if deploy else 'the fleet'} (`fleet deploy`, CLI start-up included) | {med(results['noop'])} | {spread(results['noop'])} | < 0.3 s |"
+        )
     status = results.get("status")
     if status:
         lines += [

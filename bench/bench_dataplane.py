@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -35,13 +34,13 @@ import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.machine import machine_description  # noqa: E402
-from fleet.dataplane.topics import TopicRoute  # noqa: E402
-from fleet.dataplane.discovery import server_command, server_environment  # noqa: E402
-from fleet.runtime.processes import ServiceProcess  # noqa: E402
-from fleet.runtime.environment import discovery_server_port, ros_environment  # noqa: E402
-from fleet.testing.isolation import reserve_domain_id  # noqa: E402
-from fleet.testing.netns import Lan, netns_problem  # noqa: E402
+from bench.machine import machine_description
+from fleet.dataplane.discovery import server_command, server_environment
+from fleet.dataplane.topics import TopicRoute
+from fleet.runtime.environment import discovery_server_port, ros_environment
+from fleet.runtime.processes import ServiceProcess
+from fleet.testing.isolation import reserve_domain_id
+from fleet.testing.netns import Lan, netns_problem
 
 PEER = [sys.executable, str(Path(__file__).resolve().parent / "dataplane_peer.py")]
 
@@ -68,8 +67,9 @@ class Setup:
             command = server_command(self.server)
             if lan:  # the server runs on "sim"
                 command = lan.hosts["sim"].command(*command)
-            self.ds = ServiceProcess(self.server, command, server_environment(ros_environment(domain)),
-                                     Path(tempfile.mkdtemp()) / "ds.log")  # fmt: skip
+            self.ds = ServiceProcess(
+                self.server, command, server_environment(ros_environment(domain)), Path(tempfile.mkdtemp()) / "ds.log"
+            )
             self.ds.keep_running()
             time.sleep(0.5)
 
@@ -100,12 +100,29 @@ class ZenohSetup(Setup):
         self.server = f"127.0.0.1:{discovery_server_port(domain)}"
         self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
         self.tmp = Path(tempfile.mkdtemp())
-        self.servers = [ServiceProcess(self.server, lan.hosts[host].command(*server_command(self.server)),
-                                       server_environment(ros_environment(domain)), self.tmp / f"ds-{host}.log")
-                        for host in ("sim", "rack")]  # fmt: skip
+        self.servers = [
+            ServiceProcess(
+                self.server,
+                lan.hosts[host].command(*server_command(self.server)),
+                server_environment(ros_environment(domain)),
+                self.tmp / f"ds-{host}.log",
+            )
+            for host in ("sim", "rack")
+        ]
         self.endpoint = f"tcp/{lan.hosts['sim'].address}:7447"
-        router = [sys.executable, "-m", "fleet", "router", "--listen", self.endpoint, "--state-dir", str(self.tmp / "router")]
-        self.servers.append(ServiceProcess("router", lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log"))
+        router = [
+            sys.executable,
+            "-m",
+            "fleet",
+            "router",
+            "--listen",
+            self.endpoint,
+            "--state-dir",
+            str(self.tmp / "router"),
+        ]
+        self.servers.append(
+            ServiceProcess("router", lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log")
+        )
         for service in self.servers:
             service.keep_running()
         time.sleep(2.0)
@@ -113,14 +130,28 @@ class ZenohSetup(Setup):
         self.bridges: list[ServiceProcess] = []
 
     def prepare(self, robots: int) -> None:
-        routes = [TopicRoute(name=f"/r{k}/{topic}", type=kind, reliable=reliable)
-                  for k in range(robots) for topic, kind, reliable in
-                  (("odom", "nav_msgs/msg/Odometry", True), ("scan", "sensor_msgs/msg/LaserScan", False))]  # fmt: skip
+        routes = [
+            TopicRoute(name=f"/r{k}/{topic}", type=kind, reliable=reliable)
+            for k in range(robots)
+            for topic, kind, reliable in (
+                ("odom", "nav_msgs/msg/Odometry", True),
+                ("scan", "sensor_msgs/msg/LaserScan", False),
+            )
+        ]
         for host, direction in (("rack", "exports"), ("sim", "imports")):
             config = self.tmp / f"bridge-{host}-{robots}.json"
-            config.write_text(json.dumps({"fleet": "bench", "connect": [self.endpoint], "zenoh_config": None,
-                                          "exports": [], "imports": [],
-                                          direction: [route.model_dump() for route in routes]}))  # fmt: skip
+            config.write_text(
+                json.dumps(
+                    {
+                        "fleet": "bench",
+                        "connect": [self.endpoint],
+                        "zenoh_config": None,
+                        "exports": [],
+                        "imports": [],
+                        direction: [route.model_dump() for route in routes],
+                    }
+                )
+            )
             command = self.lan.hosts[host].command(sys.executable, "-m", "fleet.dataplane.bridge", str(config))
             bridge = ServiceProcess(host, command, self.env, self.tmp / f"bridge-{host}.log")
             bridge.keep_running()
@@ -148,10 +179,18 @@ def flow(setup: Setup, robots: int, seconds: float) -> dict:
     setup.prepare(robots)
     started = time.monotonic()
     share = robots // RECEIVERS[robots]
-    receivers = [subprocess.Popen(setup.side("a", "receive", str(share), str(seconds), str(first)), env=setup.env,
-                                  stdout=subprocess.PIPE, text=True) for first in range(0, robots, share)]  # fmt: skip
-    sender = subprocess.Popen(setup.side("b", "send", str(robots), str(seconds)), env=setup.env_b,
-                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    receivers = [
+        subprocess.Popen(
+            setup.side("a", "receive", str(share), str(seconds), str(first)),
+            env=setup.env,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for first in range(0, robots, share)
+    ]
+    sender = subprocess.Popen(
+        setup.side("b", "send", str(robots), str(seconds)), env=setup.env_b, stdout=subprocess.PIPE, text=True
+    )
     sent_out, _ = sender.communicate(timeout=seconds + 120)
     sent = json.loads(sent_out.strip().splitlines()[-1])
     latencies, received = [], {"odom": 0, "scan": 0}
@@ -164,20 +203,26 @@ def flow(setup: Setup, robots: int, seconds: float) -> dict:
     cpu = setup.finish()
     return {
         "bridge_cpu_per_robot": None if cpu is None else cpu / (time.monotonic() - started) / robots,
-        "p50": percentile(latencies, 0.5), "p99": percentile(latencies, 0.99), "rate": sent["odom_rate"],
-        "odom": received["odom"] / sent["sent"]["odom"], "scan": received["scan"] / sent["sent"]["scan"],
-    }  # fmt: skip
+        "p50": percentile(latencies, 0.5),
+        "p99": percentile(latencies, 0.99),
+        "rate": sent["odom_rate"],
+        "odom": received["odom"] / sent["sent"]["odom"],
+        "scan": received["scan"] / sent["sent"]["scan"],
+    }
 
 
 def discovery(setup: Setup, robots: int, where: str) -> float | None:
     """Seconds from launching the robot participants until the world participant matched them all."""
-    observer = subprocess.Popen(setup.side("a", "observe", str(robots), "120"), env=setup.env,
-                                stdout=subprocess.PIPE, text=True)  # fmt: skip
+    observer = subprocess.Popen(
+        setup.side("a", "observe", str(robots), "120"), env=setup.env, stdout=subprocess.PIPE, text=True
+    )
     assert observer.stdout is not None
     observer.stdout.readline()  # ready: its own start-up is not counted
     launched = time.time()
-    participants = [subprocess.Popen(setup.side(where, "participant", str(k), "130"), env=setup.env_b,
-                                     stdout=subprocess.DEVNULL) for k in range(robots)]  # fmt: skip
+    participants = [
+        subprocess.Popen(setup.side(where, "participant", str(k), "130"), env=setup.env_b, stdout=subprocess.DEVNULL)
+        for k in range(robots)
+    ]
     out, _ = observer.communicate(timeout=200)
     for process in participants:
         process.kill()
@@ -194,9 +239,15 @@ def world_rtf(setup: Setup, robots: int, sim: float, where: str) -> float | None
     while four processes on `where` ("a": the same computer, "b": the other) take every robot's
     odometry and scans."""
     share = robots // 4
-    receivers = [subprocess.Popen(setup.side(where, "receive", str(share), str(sim), str(first), "robot"),
-                                  env=setup.env_b, stdout=subprocess.PIPE, text=True)
-                 for first in range(1, robots + 1, share)]  # fmt: skip
+    receivers = [
+        subprocess.Popen(
+            setup.side(where, "receive", str(share), str(sim), str(first), "robot"),
+            env=setup.env_b,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for first in range(1, robots + 1, share)
+    ]
     time.sleep(3.0)
     command = [sys.executable, str(WORLD_BENCH), "--child", "light", str(robots), str(sim)]
     if setup.lan is not None:
@@ -234,8 +285,10 @@ def main() -> int:
         setup = Setup("world", domain, lan)
         rows_rtf = []
         try:
-            for label, where in (("world and robots' subscribers on one computer", "a"),
-                                 ("subscribers on the other computer", "b")):
+            for label, where in (
+                ("world and robots' subscribers on one computer", "a"),
+                ("subscribers on the other computer", "b"),
+            ):
                 rtf = world_rtf(setup, 100, 20.0, where)
                 print(label, rtf, flush=True)
                 rows_rtf.append((label, rtf))
@@ -255,24 +308,43 @@ def main() -> int:
             print(label, converged, flush=True)
             rows_discovery.append((label, converged))
     lines = [
-        "# Data plane: topics across computers (`dds` and `zenoh` transports)", "",
-        f"Machine: {machine_description()}.", f"Command: `.venv/bin/python bench/bench_dataplane.py --seconds {args.seconds:g}`.", "",
+        "# Data plane: topics across computers (`dds` and `zenoh` transports)",
+        "",
+        f"Machine: {machine_description()}.",
+        f"Command: `.venv/bin/python bench/bench_dataplane.py --seconds {args.seconds:g}`.",
+        "",
         "One sender process publishes every robot's topics; with 100 robots, four receiver processes",
         "take 25 robots each. Delivered: messages received over messages published. Latency is one-way",
-        "and includes any queueing in the receivers.", "",
-        "Bridge CPU: CPU time of both bridges (zenoh transport) over the run, per robot, in % of one core.", "",
+        "and includes any queueing in the receivers.",
+        "",
+        "Bridge CPU: CPU time of both bridges (zenoh transport) over the run, per robot, in % of one core.",
+        "",
         "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) | bridge CPU per robot |",
         "|---|---|---|---|---|---|---|---|",
-    ]  # fmt: skip
+    ]
     for label, robots, r in rows_flow:
         cpu = r["bridge_cpu_per_robot"]
-        lines.append(f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | "
-                     f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} |")
-    lines += ["", "Discovery of 30 robot participants by a world participant:", "", "| setup | seconds to match all |", "|---|---|"]
+        lines.append(
+            f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | "
+            f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} |"
+        )
+    lines += [
+        "",
+        "Discovery of 30 robot participants by a world participant:",
+        "",
+        "| setup | seconds to match all |",
+        "|---|---|",
+    ]
     for label, converged in rows_discovery:
         lines.append(f"| {label} | {'not converged in 120 s' if converged is None else f'{converged:.1f}'} |")
-    lines += ["", "World with 100 light robots (as fast as possible, 20 s of sim time, `dds`), every robot's",
-              "odometry and scans taken by four subscriber processes:", "", "| where the subscribers run | RTF |", "|---|---|"]
+    lines += [
+        "",
+        "World with 100 light robots (as fast as possible, 20 s of sim time, `dds`), every robot's",
+        "odometry and scans taken by four subscriber processes:",
+        "",
+        "| where the subscribers run | RTF |",
+        "|---|---|",
+    ]
     for label, rtf in rows_rtf:
         lines.append(f"| {label} | {'failed' if rtf is None else f'{rtf:.2f}'} |")
     args.output.write_text("\n".join(lines) + "\n")

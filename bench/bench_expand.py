@@ -17,22 +17,31 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.machine import machine_description  # noqa: E402
-from fleet.cli.render_cmd import write_bundles  # noqa: E402
-from fleet.expand import expand_fleet  # noqa: E402
-from fleet.spec import load_spec  # noqa: E402
+from bench.machine import machine_description
+from fleet.cli.render_cmd import write_bundles
+from fleet.expand import expand_fleet
+from fleet.spec import load_spec
 
 
 def make_spec(robots: int, path: Path) -> None:
     spec = {
         "fleet": "bench",
-        "world": {"obstacles": [{"name": f"o{i}", "type": "box", "position": [i * 3.0, -5.0], "size": [1, 1, 1]}
-                                for i in range(20)]},
+        "world": {
+            "obstacles": [
+                {"name": f"o{i}", "type": "box", "position": [i * 3.0, -5.0], "size": [1, 1, 1]} for i in range(20)
+            ]
+        },
         "agents": {f"host{i}": {} for i in range(10)},
         "defaults": {"agent": "host0", "parameters": {"controller": {"max_speed": 0.6}}},
-        "robots": [{"name": f"robot{i}", "agent": f"host{i % 10}", "pose": {"x": (i % 40) * 1.0, "y": (i // 40) * 1.0},
-                    "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0]}} if i % 3 == 0 else {}}
-                   for i in range(robots)],
+        "robots": [
+            {
+                "name": f"robot{i}",
+                "agent": f"host{i % 10}",
+                "pose": {"x": (i % 40) * 1.0, "y": (i // 40) * 1.0},
+                "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0]}} if i % 3 == 0 else {},
+            }
+            for i in range(robots)
+        ],
     }
     path.write_text(yaml.safe_dump(spec))
 

@@ -26,7 +26,7 @@ import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.machine import machine_info  # noqa: E402
+from bench.machine import machine_info
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.isolation import reserve_domain_id, ros_environment
@@ -147,8 +147,7 @@ def cpu_seconds(pids: set[int]) -> float:
 def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe) -> dict:
     paths, expected = write_robots(robots, workdir)
     sessions = [
-        LaunchSession(path, env=env, log_dir=workdir / "logs" / path.stem,
-                      isolation=isolation, backend="embedded")  # fmt: skip
+        LaunchSession(path, env=env, log_dir=workdir / "logs" / path.stem, isolation=isolation, backend="embedded")
         for path in paths
     ]
     try:
@@ -228,8 +227,7 @@ def report(results: list[dict], info: dict[str, str]) -> str:
             speed = robot["startup_s"] / process["startup_s"]
             cpu = robot["startup_cpu_s"] / process["startup_cpu_s"]
             lines.append(
-                f"- {robots} robots: memory (PSS) {ratio:.2f}x, start-up time {speed:.2f}x, "
-                f"start-up CPU {cpu:.2f}x"
+                f"- {robots} robots: memory (PSS) {ratio:.2f}x, start-up time {speed:.2f}x, start-up CPU {cpu:.2f}x"
             )
     return "\n".join(lines) + "\n"
 
@@ -239,8 +237,13 @@ def main() -> int:
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 10, 30])
     parser.add_argument("--isolation", nargs="+", default=["process", "robot"])
     parser.add_argument("--repeat", type=int, default=1, help="runs of each case (all reported)")
-    parser.add_argument("--env", nargs="*", default=[], metavar="NAME=VALUE",
-                        help="extra environment of the node processes (e.g. MALLOC_ARENA_MAX=2)")
+    parser.add_argument(
+        "--env",
+        nargs="*",
+        default=[],
+        metavar="NAME=VALUE",
+        help="extra environment of the node processes (e.g. MALLOC_ARENA_MAX=2)",
+    )
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "isolation.md")
     args = parser.parse_args()
     info = machine_info()

@@ -26,7 +26,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.machine import machine_info  # noqa: E402
+from bench.machine import machine_info
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "world.md"
@@ -43,9 +43,16 @@ def world_yaml(model: str, count: int) -> dict:
     for i in range(count):
         x = (i % side - (side - 1) / 2) * spacing
         y = (i // side - (side - 1) / 2) * spacing
-        robots.append({"name": f"robot{i + 1}", "model": {"type": model}, "pose": {"x": x, "y": y, "yaw": 0.3 * i},
-                       "lidar": {"beams": 360, "rate": 10.0, "range_min": 0.12, "range_max": 8.0},
-                       "odom_rate": 50.0, "cmd_timeout": 0.5})
+        robots.append(
+            {
+                "name": f"robot{i + 1}",
+                "model": {"type": model},
+                "pose": {"x": x, "y": y, "yaw": 0.3 * i},
+                "lidar": {"beams": 360, "rate": 10.0, "range_min": 0.12, "range_max": 8.0},
+                "odom_rate": 50.0,
+                "cmd_timeout": 0.5,
+            }
+        )
     obstacles = [
         {"name": "north", "type": "wall", "position": [0.0, half], "size": [2 * half, 0.2, 1.0]},
         {"name": "south", "type": "wall", "position": [0.0, -half], "size": [2 * half, 0.2, 1.0]},
@@ -55,10 +62,23 @@ def world_yaml(model: str, count: int) -> dict:
     # pillars in the middle of grid cells (between robots)
     for k in range(min(side - 1, 6)):
         px = (k - (side - 2) / 2) * spacing
-        obstacles.append({"name": f"pillar{k}", "type": "cylinder", "position": [px, spacing / 2 if side > 1 else 1.5],
-                          "radius": 0.2, "height": 1.0})
-    return {"fleet": f"bench_{model}_{count}", "physics_rate": 240.0, "real_time": False, "clock_rate": 100.0,
-            "obstacles": obstacles, "robots": robots}
+        obstacles.append(
+            {
+                "name": f"pillar{k}",
+                "type": "cylinder",
+                "position": [px, spacing / 2 if side > 1 else 1.5],
+                "radius": 0.2,
+                "height": 1.0,
+            }
+        )
+    return {
+        "fleet": f"bench_{model}_{count}",
+        "physics_rate": 240.0,
+        "real_time": False,
+        "clock_rate": 100.0,
+        "obstacles": obstacles,
+        "robots": robots,
+    }
 
 
 def run_one(model: str, count: int, sim_duration: float) -> dict:
@@ -102,14 +122,29 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
         contacts = app.contacts_count - contacts0
         app.close()
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return {"model": model, "robots": spawned, "sim": sim_duration, "wall": wall, "rtf": sim_duration / wall,
-            "cpu_share": cpu / wall, "setup": setup, "odom_hz": published["odom"] / sim_duration / max(spawned, 1),
-            "scan_hz": published["scan"] / sim_duration / max(spawned, 1), "contacts": contacts, "rss_mib": rss}
+    return {
+        "model": model,
+        "robots": spawned,
+        "sim": sim_duration,
+        "wall": wall,
+        "rtf": sim_duration / wall,
+        "cpu_share": cpu / wall,
+        "setup": setup,
+        "odom_hz": published["odom"] / sim_duration / max(spawned, 1),
+        "scan_hz": published["scan"] / sim_duration / max(spawned, 1),
+        "contacts": contacts,
+        "rss_mib": rss,
+    }
 
 
 def child(model: str, count: int, sim: float, env: dict) -> dict | None:
-    done = subprocess.run([sys.executable, __file__, "--child", model, str(count), str(sim)], env=env,
-                          capture_output=True, text=True, timeout=900)
+    done = subprocess.run(
+        [sys.executable, __file__, "--child", model, str(count), str(sim)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     for line in done.stdout.splitlines():
         if line.startswith("RESULT "):
             return json.loads(line[7:])
@@ -118,15 +153,19 @@ def child(model: str, count: int, sim: float, env: dict) -> dict | None:
 
 
 def table(rows: list[dict]) -> str:
-    out = ["| model | robots | sim s | wall s | RTF | CPU (cores) | odom Hz/robot | scan Hz/robot | contacts | start-up s | RSS MiB |",
-           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    out = [
+        "| model | robots | sim s | wall s | RTF | CPU (cores) | odom Hz/robot | scan Hz/robot | contacts | start-up s | RSS MiB |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for r in rows:
         if r.get("skipped"):
             out.append(f"| {r['model']} | {r['robots']} | - | - | skipped: {r['skipped']} | | | | | | |")
             continue
-        out.append(f"| {r['model']} | {r['robots']} | {r['sim']:.0f} | {r['wall']:.2f} | **{r['rtf']:.2f}** | "
-                   f"{r['cpu_share']:.2f} | {r['odom_hz']:.1f} | {r['scan_hz']:.1f} | {r['contacts']} | "
-                   f"{r['setup']:.2f} | {r['rss_mib']:.0f} |")
+        out.append(
+            f"| {r['model']} | {r['robots']} | {r['sim']:.0f} | {r['wall']:.2f} | **{r['rtf']:.2f}** | "
+            f"{r['cpu_share']:.2f} | {r['odom_hz']:.1f} | {r['scan_hz']:.1f} | {r['contacts']} | "
+            f"{r['setup']:.2f} | {r['rss_mib']:.0f} |"
+        )
     return "\n".join(out)
 
 
@@ -159,8 +198,13 @@ def main() -> None:
             if per_robot_step is not None:
                 predicted = per_robot_step * count * husky_sim
                 if predicted > MAX_PREDICTED_WALL:
-                    rows.append({"model": "husky", "robots": count,
-                                 "skipped": f"predicted {predicted:.0f} s wall for {husky_sim:.0f} s sim"})
+                    rows.append(
+                        {
+                            "model": "husky",
+                            "robots": count,
+                            "skipped": f"predicted {predicted:.0f} s wall for {husky_sim:.0f} s sim",
+                        }
+                    )
                     print(f"husky {count}: skipped (predicted {predicted:.0f} s)", flush=True)
                     continue
             row = child("husky", count, husky_sim, env)
@@ -184,13 +228,15 @@ def main() -> None:
         "(numpy ray casting) published through rclpy (FastDDS, no subscribers), /clock 100 Hz, status file "
         f"4 Hz; as fast as possible for {light_sim:.0f} s (light) / {husky_sim:.0f} s (husky) of sim time after "
         "0.5 s of warm-up. RTF = sim time / wall time. CPU = process CPU time / wall time (1.0 = one core).\n\n"
-        + text + "\n\nTargets: RTF >= 1.5 with 100 light robots, >= 1.0 with 30 husky.\n\n"
+        + text
+        + "\n\nTargets: RTF >= 1.5 with 100 light robots, >= 1.0 with 30 husky.\n\n"
         "Notes: the world's cost per published message (conversion, serialization, FastDDS write) is "
         "~10-25 us and is included; nobody subscribes, so delivery costs of real subscribers (in their own "
         "processes, on the same cores) are not. Husky counts are run up to the first predicted to take "
         f"more than {MAX_PREDICTED_WALL:.0f} s of wall time (none skipped when every row has numbers). "
         "Light-model cost grows faster than linearly with robot count because each scan sees more robots "
-        "within range_max in a denser arena.\n")
+        "within range_max in a denser arena.\n"
+    )
     print(f"wrote {RESULTS}")
 
 

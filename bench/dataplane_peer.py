@@ -81,6 +81,7 @@ def receive(node, robots: range, seconds: float, prefix: str = "r") -> None:
             counts[kind] += 1
             last[0] = time.monotonic()
             latencies.append((now - msg.header.stamp.sec * 1_000_000_000 - msg.header.stamp.nanosec) / 1e6)
+
         return callback
 
     for k in robots:

@@ -33,5 +33,7 @@ def machine_info() -> dict[str, str]:
 
 def machine_description() -> str:
     info = machine_info()
-    return (f"{info['nproc']} cores ({info['cpu']}), {info['ram']} RAM, Linux {info['kernel']}, "
-            f"Python {info['python']}, load average {info['load']}")
+    return (
+        f"{info['nproc']} cores ({info['cpu']}), {info['ram']} RAM, Linux {info['kernel']}, "
+        f"Python {info['python']}, load average {info['load']}"
+    )

@@ -76,12 +76,20 @@ def ros_env(ros_domain, monkeypatch, tmp_path_factory):
     from fleet.dataplane.discovery import discovery_server
     from fleet.runtime.environment import discovery_server_port
 
-    server = discovery_server(f"127.0.0.1:{discovery_server_port(ros_domain)}", ros_environment(ros_domain),
-                              tmp_path_factory.mktemp("discovery") / "server.log")  # fmt: skip
+    server = discovery_server(
+        f"127.0.0.1:{discovery_server_port(ros_domain)}",
+        ros_environment(ros_domain),
+        tmp_path_factory.mktemp("discovery") / "server.log",
+    )
     server.keep_running()
     env = ros_environment(ros_domain, discovery_server=server.key)
-    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS",
-                "ROS_DISCOVERY_SERVER"):
+    for key in (
+        "ROS_DOMAIN_ID",
+        "ROS_AUTOMATIC_DISCOVERY_RANGE",
+        "RMW_IMPLEMENTATION",
+        "FASTDDS_BUILTIN_TRANSPORTS",
+        "ROS_DISCOVERY_SERVER",
+    ):
         monkeypatch.setenv(key, env[key])
     monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
     try:

@@ -23,6 +23,7 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
+
 @app.callback()
 def _fleet() -> None:
     """Multi-robot fleet orchestrator for ROS 2 Jazzy.

@@ -8,7 +8,6 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -40,19 +39,19 @@ def register(app: typer.Typer) -> None:
 # Helpers
 
 
-def _endpoints(connect: Optional[str]) -> list[str]:
+def _endpoints(connect: str | None) -> list[str]:
     from fleet.control.session import default_endpoint
 
     return [connect or default_endpoint()]
 
 
-def _zenoh_config(path: Optional[Path]):
+def _zenoh_config(path: Path | None):
     from fleet.control.session import config_file
 
     return config_file(path)
 
 
-def _client(connect: Optional[str], zenoh_config: Optional[Path]):
+def _client(connect: str | None, zenoh_config: Path | None):
     from fleet.control.client import ControlClient
 
     return ControlClient(_endpoints(connect), _zenoh_config(zenoh_config))
@@ -69,8 +68,7 @@ def _expand(spec: Path, sets: list[str]):
 def _logging() -> None:
     import logging
 
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s",
-                        stream=sys.stderr)  # fmt: skip
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s", stream=sys.stderr)
 
 
 def _stop_on_signals():
@@ -89,9 +87,11 @@ def _stop_on_signals():
 
 
 def router(
-    listen: list[str] = typer.Option([], "--listen", "-l", help="Endpoint to listen on (repeatable; default tcp/127.0.0.1:7447)."),
-    zenoh_config: Optional[Path] = ZenohConfigOption,
-    state_dir: Optional[Path] = typer.Option(None, "--state-dir", help="Keep the registry (what runs where) here."),
+    listen: list[str] = typer.Option(
+        [], "--listen", "-l", help="Endpoint to listen on (repeatable; default tcp/127.0.0.1:7447)."
+    ),
+    zenoh_config: Path | None = ZenohConfigOption,
+    state_dir: Path | None = typer.Option(None, "--state-dir", help="Keep the registry (what runs where) here."),
 ) -> None:
     """Run a Zenoh router for fleet agents and CLIs (foreground)."""
     from fleet.control.router import run_router
@@ -104,11 +104,16 @@ def router(
 
 def agent(
     name: str = typer.Option(..., "--name", "-n", help="Agent name, as robots' `agent:` in fleet specs."),
-    connect: Optional[str] = ConnectOption,
-    state_dir: Optional[Path] = typer.Option(None, "--state-dir", help="Desired state and units (default: <state dir>/agents/NAME)."),
-    zenoh_config: Optional[Path] = ZenohConfigOption,
-    address: Optional[str] = typer.Option(
-        None, "--address", help="IPv4 address other computers reach this one at (default: the one on the route to the router)."),
+    connect: str | None = ConnectOption,
+    state_dir: Path | None = typer.Option(
+        None, "--state-dir", help="Desired state and units (default: <state dir>/agents/NAME)."
+    ),
+    zenoh_config: Path | None = ZenohConfigOption,
+    address: str | None = typer.Option(
+        None,
+        "--address",
+        help="IPv4 address other computers reach this one at (default: the one on the route to the router).",
+    ),
 ) -> None:
     """Run an agent (foreground): receives desired state, runs the robots, reports status."""
     from fleet.control.agent import Agent
@@ -127,8 +132,10 @@ def agent(
 
 
 def up(
-    listen: Optional[str] = typer.Option(None, "--listen", "-l", help="Endpoint (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."),
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    listen: str | None = typer.Option(
+        None, "--listen", "-l", help="Endpoint (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."
+    ),
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Start the local background daemon (router + agent `local`); state in $FLEET_STATE_DIR."""
     from fleet.control import daemon
@@ -139,11 +146,11 @@ def up(
 
 
 def down(
-    spec: Optional[Path] = typer.Argument(None, help="Fleet spec whose fleet to stop."),
-    fleet: Optional[str] = typer.Option(None, "--fleet", "-f", help="Name of the fleet to stop."),
+    spec: Path | None = typer.Argument(None, help="Fleet spec whose fleet to stop."),
+    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Name of the fleet to stop."),
     all_: bool = typer.Option(False, "--all", help="Stop every fleet, then the local daemon."),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Stop a fleet's robots on every agent (`--all`: every fleet and the local daemon)."""
     from fleet.control import daemon
@@ -190,8 +197,8 @@ def deploy(
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
     wait: bool = typer.Option(True, "--wait/--no-wait", help="Wait until every robot's nodes run."),
     timeout: float = typer.Option(60.0, "--timeout", help="Seconds to wait for the fleet to come up."),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
     json: bool = typer.Option(False, "--json", help="Print the outcome as JSON."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Only show what would be deployed; send nothing."),
 ) -> None:
@@ -218,7 +225,7 @@ def deploy(
         raise typer.Exit(1)
 
 
-def _connect_or_start_daemon(expansion, connect: Optional[str], zenoh_config: Optional[Path]):
+def _connect_or_start_daemon(expansion, connect: str | None, zenoh_config: Path | None):
     """Connect; if nothing answers on the default endpoint (a loopback one, not an explicit
     --connect) and the spec places robots on `local`, start the local daemon there first."""
     from fleet.control import daemon
@@ -247,9 +254,14 @@ class _DeployProgress:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
             self.progress = Progress(
-                TextColumn("{task.description:<16}"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("{task.fields[state]}"), TimeElapsedColumn(), console=console, transient=True,
-            )  # fmt: skip
+                TextColumn("{task.description:<16}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[state]}"),
+                TimeElapsedColumn(),
+                console=console,
+                transient=True,
+            )
 
     def __enter__(self):
         if self.progress is not None:
@@ -266,8 +278,9 @@ class _DeployProgress:
         for robot in robots:
             if robot.name not in self.tasks:
                 self.tasks[robot.name] = self.progress.add_task(robot.name, total=max(robot.total, 1), state="")
-            self.progress.update(self.tasks[robot.name], total=max(robot.total, 1), completed=robot.running,
-                                 state=robot.state)  # fmt: skip
+            self.progress.update(
+                self.tasks[robot.name], total=max(robot.total, 1), completed=robot.running, state=robot.state
+            )
 
 
 def _outcome_json(outcome) -> dict:
@@ -285,8 +298,9 @@ def _outcome_json(outcome) -> dict:
         "nothing_changed": outcome.nothing_changed,
         "superseded_by": outcome.superseded_by,
         "timed_out": outcome.timed_out,
-        "discovery": None if outcome.discovery is None else {
-            "host": outcome.discovery.host, "server": outcome.discovery.server, "note": outcome.discovery.note},
+        "discovery": None
+        if outcome.discovery is None
+        else {"host": outcome.discovery.host, "server": outcome.discovery.server, "note": outcome.discovery.note},
         "agents": replies,
         "status": outcome.view.to_json() if outcome.view else None,
     }
@@ -302,9 +316,17 @@ def _print_outcome(outcome, out) -> None:
             out.print(f"[red]agent {agent_name} refused generation {reply.generation}:[/red] {reply.reason}")
         elif not reply.changes.nothing:
             c = reply.changes
-            parts = [f"{label} {', '.join(names)}" for label, names in
-                     (("started", c.start), ("restarted", c.restart), ("hot-updated", c.hot_update),
-                      ("stopped", c.stop), ("unchanged", c.unchanged)) if names]  # fmt: skip
+            parts = [
+                f"{label} {', '.join(names)}"
+                for label, names in (
+                    ("started", c.start),
+                    ("restarted", c.restart),
+                    ("hot-updated", c.hot_update),
+                    ("stopped", c.stop),
+                    ("unchanged", c.unchanged),
+                )
+                if names
+            ]
             out.print(f"agent {agent_name}: " + "; ".join(parts))
     if outcome.nothing_changed:
         out.print("nothing changed: every robot was already running this description (no restarts)")
@@ -316,8 +338,10 @@ def _print_outcome(outcome, out) -> None:
         out.print(f"[yellow]note:[/yellow] {outcome.discovery.note}")
     if outcome.timed_out:
         stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
-        out.print(f"[red]timed out[/red] waiting for every robot to run; not running: "
-                  + "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck))
+        out.print(
+            "[red]timed out[/red] waiting for every robot to run; not running: "
+            + "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
+        )
     elif outcome.ok:
         out.print("[green]fleet up[/green]")
 
@@ -325,8 +349,8 @@ def _print_outcome(outcome, out) -> None:
 def diff(
     spec: Path = typer.Argument(..., help="Fleet spec file."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
     json: bool = typer.Option(False, "--json"),
 ) -> None:
     """Show what `fleet deploy SPEC` would change, robot by robot."""
@@ -359,11 +383,11 @@ def diff(
 
 
 def status(
-    fleet: Optional[str] = typer.Option(None, "--fleet", "-f", help="Only this fleet."),
+    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Only this fleet."),
     json: bool = typer.Option(False, "--json", help="Print JSON."),
     watch: bool = typer.Option(False, "--watch", "-w", help="Refresh every second until Ctrl-C."),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Agents (online/offline), robots (state, nodes, restarts, pose, battery) and worlds
     (sim time, real-time factor, contacts) of every fleet."""
@@ -395,10 +419,10 @@ def status(
 
 
 def ros_env(
-    fleet: Optional[str] = typer.Option(None, "--fleet", "-f", help="The fleet (needed when several run)."),
-    agent: Optional[str] = typer.Option(None, "--agent", "-a", help="zenoh transport: the agent on this computer."),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    fleet: str | None = typer.Option(None, "--fleet", "-f", help="The fleet (needed when several run)."),
+    agent: str | None = typer.Option(None, "--agent", "-a", help="zenoh transport: the agent on this computer."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Print the environment that lets ROS tools (ros2 topic, rviz2) see a fleet's whole graph:
     `eval "$(fleet ros-env)"`."""
@@ -419,24 +443,36 @@ def tool_environment(view, fleet: str | None, agent: str | None) -> dict[str, st
     fleets = sorted(view.domain_ids)
     if fleet is None:
         if len(fleets) != 1:
-            raise FleetError("no fleet is deployed" if not fleets else f"several fleets run ({', '.join(fleets)}): pick one with --fleet")
+            raise FleetError(
+                "no fleet is deployed"
+                if not fleets
+                else f"several fleets run ({', '.join(fleets)}): pick one with --fleet"
+            )
         fleet = fleets[0]
     if fleet not in view.domain_ids:
         raise ControlError(f"fleet {fleet} is not deployed (see `fleet status`)")
     servers = {server["agent"]: server["server"] for server in view.discovery.get(fleet, [])}
     if agent is not None:
         if agent not in servers:
-            raise FleetError(f"agent {agent} runs no discovery server of fleet {fleet} (those that do: {', '.join(sorted(servers)) or 'none'})")
+            raise FleetError(
+                f"agent {agent} runs no discovery server of fleet {fleet} (those that do: {', '.join(sorted(servers)) or 'none'})"
+            )
         server = servers[agent]
     elif len(servers) == 1:
         server = next(iter(servers.values()))
     elif not servers:
         raise ControlError(f"no discovery server of fleet {fleet} answers (is its world's agent online?)")
     else:
-        raise FleetError(f"fleet {fleet} uses the zenoh transport: every computer has its own DDS; "
-                         f"pick the agent on this one with --agent ({', '.join(sorted(servers))})")  # fmt: skip
-    return {"ROS_DOMAIN_ID": str(view.domain_ids[fleet]), "ROS_DISCOVERY_SERVER": server, "ROS_SUPER_CLIENT": "TRUE",
-            "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}  # fmt: skip
+        raise FleetError(
+            f"fleet {fleet} uses the zenoh transport: every computer has its own DDS; "
+            f"pick the agent on this one with --agent ({', '.join(sorted(servers))})"
+        )
+    return {
+        "ROS_DOMAIN_ID": str(view.domain_ids[fleet]),
+        "ROS_DISCOVERY_SERVER": server,
+        "ROS_SUPER_CLIENT": "TRUE",
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+    }
 
 
 def _print_view(view, out, agents: bool = True) -> None:
@@ -451,13 +487,22 @@ def _view_tables(view, agents: bool = True):
 
     tables = []
     if agents:
-        table = make_table("agent", "state", "last seen", "host", "address", "cores", "backends", "fleets",
-                           title="Agents")  # fmt: skip
+        table = make_table(
+            "agent", "state", "last seen", "host", "address", "cores", "backends", "fleets", title="Agents"
+        )
         for row in view.agents:
             state = "[green]online[/green]" if row.online else "[red]offline[/red]"
             seen = "now" if row.online else (_ago(row.last_seen) if row.last_seen is not None else "never")
-            table.add_row(row.name, state, seen, row.hostname, row.address, str(row.cores or ""),
-                          ", ".join(row.backends), ", ".join(row.fleets))  # fmt: skip
+            table.add_row(
+                row.name,
+                state,
+                seen,
+                row.hostname,
+                row.address,
+                str(row.cores or ""),
+                ", ".join(row.backends),
+                ", ".join(row.fleets),
+            )
         tables.append(table)
     several_fleets = len({row.fleet for row in view.robots}) > 1
     columns = ["robot", "agent", "state", "nodes", "restarts", "deployed", "pose x,y,yaw", "battery"]
@@ -465,18 +510,26 @@ def _view_tables(view, agents: bool = True):
     reasons = any(row.reason and not row.error for row in view.robots)
     if reasons:
         columns.append("reason")
-    table = make_table(*(["fleet"] + columns if several_fleets else columns), title="Robots")
+    table = make_table(*(["fleet", *columns] if several_fleets else columns), title="Robots")
     colours = {"running": "green", "starting": "yellow", "pending": "yellow", "degraded": "yellow"}
     for row in view.robots:
         colour = colours.get(row.state, "red")
         pose = f"{row.pose.get('x', 0):.2f},{row.pose.get('y', 0):.2f},{row.pose.get('yaw', 0):.2f}" if row.pose else ""
         battery = f"{row.battery * 100:.0f}%" if row.battery is not None else ""
         state = f"[{colour}]{row.state}[/{colour}]" + (" (live overrides)" if row.overrides else "")
-        cells = [row.name, row.agent, state, f"{row.running}/{row.total}", str(row.restarts),
-                 _generation_time(row.generation), pose, battery]
+        cells = [
+            row.name,
+            row.agent,
+            state,
+            f"{row.running}/{row.total}",
+            str(row.restarts),
+            _generation_time(row.generation),
+            pose,
+            battery,
+        ]
         if reasons:
             cells.append("" if row.error else row.reason)
-        table.add_row(*([row.fleet] + cells if several_fleets else cells))
+        table.add_row(*([row.fleet, *cells] if several_fleets else cells))
     tables.append(table)
     for world in view.worlds:
         tables.append(_world_line(world))
@@ -492,8 +545,10 @@ def _world_line(world):
 
     from fleet.control.view import WORLD_SILENT
 
-    line = Text(f"world {world.fleet} on {world.agent}: t {world.sim_time:.1f} s, "
-                f"RTF {world.real_time_factor:.2f}, {world.robots} robots, ")  # fmt: skip
+    line = Text(
+        f"world {world.fleet} on {world.agent}: t {world.sim_time:.1f} s, "
+        f"RTF {world.real_time_factor:.2f}, {world.robots} robots, "
+    )
     count = world.contacts.get("count", 0)
     contacts = f"{count} contact" + ("" if count == 1 else "s")
     last = world.contacts.get("last") or []
@@ -527,7 +582,7 @@ def _generation_time(generation: int) -> str:
 # Logs and parameters
 
 
-def _locate(client, robot: str, fleet: Optional[str]):
+def _locate(client, robot: str, fleet: str | None):
     """(fleet, agent) running `robot`, from one status query."""
     from fleet.control.view import build_view
     from fleet.errors import ControlError, FleetError
@@ -543,12 +598,12 @@ def _locate(client, robot: str, fleet: Optional[str]):
 
 def logs(
     robot: str = typer.Argument(..., help="Robot name (or `world`)."),
-    node: Optional[str] = typer.Argument(None, help="Node name (default: every node of the robot)."),
+    node: str | None = typer.Argument(None, help="Node name (default: every node of the robot)."),
     follow: bool = typer.Option(False, "--follow", "-f", help="Keep printing new lines until Ctrl-C."),
     tail: int = typer.Option(50, "--tail", "-n", help="Lines to show first (per node)."),
-    fleet: Optional[str] = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it."),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    fleet: str | None = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Print a robot's node logs, streamed from its agent."""
     from fleet.control import protocol as p
@@ -597,17 +652,18 @@ def _param(robot: str, node: str, name: str, op: str, value, fleet, connect, zen
             raise FleetError(f"invalid parameter request: {error}") from None
         from fleet.control.agent import PARAM_TIMEOUT
 
-        return client.request(p.param_key(fleet_name, agent_name), request, p.ParamReply, f"agent {agent_name}",
-                              timeout=PARAM_TIMEOUT + 5)  # the agent's own wait, plus the round trip
+        return client.request(
+            p.param_key(fleet_name, agent_name), request, p.ParamReply, f"agent {agent_name}", timeout=PARAM_TIMEOUT + 5
+        )  # the agent's own wait, plus the round trip
 
 
 def param_get(
     robot: str = typer.Argument(...),
     node: str = typer.Argument(...),
     name: str = typer.Argument(...),
-    fleet: Optional[str] = typer.Option(None, "--fleet"),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    fleet: str | None = typer.Option(None, "--fleet"),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Print the current value of a node's parameter."""
     import json
@@ -624,9 +680,9 @@ def param_set(
     node: str = typer.Argument(...),
     name: str = typer.Argument(...),
     value: str = typer.Argument(..., help="New value, as YAML (0.8, true, [1.0, 2.0])."),
-    fleet: Optional[str] = typer.Option(None, "--fleet"),
-    connect: Optional[str] = ConnectOption,
-    zenoh_config: Optional[Path] = ZenohConfigOption,
+    fleet: str | None = typer.Option(None, "--fleet"),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Set a node's parameter live; kept across restarts until the robot's spec changes."""
     reply = _param(robot, node, name, "set", _parse_value(value), fleet, connect, zenoh_config)

@@ -35,8 +35,9 @@ def table(*columns: str, title: str | None = None):
     from rich import box
     from rich.table import Table
 
-    result = Table(title=title, title_justify="left", title_style="bold", box=box.SIMPLE_HEAD,
-                   pad_edge=False, show_edge=False)
+    result = Table(
+        title=title, title_justify="left", title_style="bold", box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False
+    )
     for column in columns:
         result.add_column(column.upper(), overflow="fold")
     return result

@@ -17,21 +17,41 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
         parameters: dict[str, dict[str, Any]] = {}
         for (node, name), settings in effective.history.items():
             parameters.setdefault(node, {})[name] = {"value": settings[-1].value, "from": settings[-1].layer}
-        robots.append({
-            "name": plan.name, "agent": plan.agent, "namespace": plan.namespace, "template": plan.template,
-            "isolation": plan.isolation, "model": plan.model.model_dump(), "pose": plan.pose,
-            "launch_args": plan.launch_args,
-            "nodes": [{"name": node.name, "fqn": node.fqn, "package": node.package, "executable": node.executable,
-                       "conditional": node.conditional} for node in plan.outline.nodes],
-            "parameters": parameters,
-            "digest": expansion.bundle(plan.name).digest,
-        })
+        robots.append(
+            {
+                "name": plan.name,
+                "agent": plan.agent,
+                "namespace": plan.namespace,
+                "template": plan.template,
+                "isolation": plan.isolation,
+                "model": plan.model.model_dump(),
+                "pose": plan.pose,
+                "launch_args": plan.launch_args,
+                "nodes": [
+                    {
+                        "name": node.name,
+                        "fqn": node.fqn,
+                        "package": node.package,
+                        "executable": node.executable,
+                        "conditional": node.conditional,
+                    }
+                    for node in plan.outline.nodes
+                ],
+                "parameters": parameters,
+                "digest": expansion.bundle(plan.name).digest,
+            }
+        )
     return {
-        "fleet": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time,
-        "agents": {name: {"description": agent.description, "units": [b.name for b in expansion.for_agent(name)]}
-                   for name, agent in spec.agents.items()},
-        "world": None if world is None else {"agent": world.agent, "obstacles": len(spec.world.obstacles),
-                                             "digest": world.digest},
+        "fleet": spec.fleet,
+        "domain_id": spec.ros.domain_id,
+        "use_sim_time": spec.ros.use_sim_time,
+        "agents": {
+            name: {"description": agent.description, "units": [b.name for b in expansion.for_agent(name)]}
+            for name, agent in spec.agents.items()
+        },
+        "world": None
+        if world is None
+        else {"agent": world.agent, "obstacles": len(spec.world.obstacles), "digest": world.digest},
         "robots": robots,
         "warnings": expansion.warnings,
     }
@@ -41,16 +61,28 @@ def print_plan(expansion: Expansion, console) -> None:
     from fleet.cli.output import table
 
     data = plan_data(expansion)
-    console.print(f"[bold]fleet {data['fleet']}[/bold]  ROS_DOMAIN_ID={data['domain_id']}  "
-                  f"use_sim_time={str(data['use_sim_time']).lower()}  "
-                  + (f"world on agent {data['world']['agent']} ({data['world']['obstacles']} obstacles)"
-                     if data["world"] else "no world"))
+    console.print(
+        f"[bold]fleet {data['fleet']}[/bold]  ROS_DOMAIN_ID={data['domain_id']}  "
+        f"use_sim_time={str(data['use_sim_time']).lower()}  "
+        + (
+            f"world on agent {data['world']['agent']} ({data['world']['obstacles']} obstacles)"
+            if data["world"]
+            else "no world"
+        )
+    )
     robots = table("robot", "agent", "namespace", "template", "nodes", "model", "pose x,y,yaw", title="Robots")
     for robot in data["robots"]:
         nodes = ", ".join(node["name"] + ("?" if node["conditional"] else "") for node in robot["nodes"])
         pose = robot["pose"]
-        robots.add_row(robot["name"], robot["agent"], robot["namespace"], robot["template"], nodes,
-                       robot["model"]["type"], f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}")
+        robots.add_row(
+            robot["name"],
+            robot["agent"],
+            robot["namespace"],
+            robot["template"],
+            nodes,
+            robot["model"]["type"],
+            f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}",
+        )
     console.print(robots)
     console.print("[dim]? = started only when its launch condition holds (e.g. enable_safety)[/dim]")
     parameters = table("robot", "node", "parameter", "value", "from", title="Effective parameters")
@@ -71,17 +103,27 @@ def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:
     node, _, name = rest.partition(".")
     plan = expansion.robot(robot_name)
     if plan is None or not node or not name:
-        raise SpecError(f"expected ROBOT.NODE.PARAMETER of a robot in the spec "
-                        f"(robots: {', '.join(r.name for r in expansion.robots)})", Location(f"--explain {key}"))
+        raise SpecError(
+            f"expected ROBOT.NODE.PARAMETER of a robot in the spec "
+            f"(robots: {', '.join(r.name for r in expansion.robots)})",
+            Location(f"--explain {key}"),
+        )
     settings: list[Setting] = plan.parameters.explain(node, name)
     if not settings:
         known = sorted({n for (nd, n) in plan.parameters.history if nd == node})
-        raise SpecError(f"{robot_name}.{node} has no parameter {name!r} in any layer"
-                        + (f" (parameters: {', '.join(known)})" if known else f" (no node {node!r})"),
-                        Location(f"--explain {key}"))
-    return {"parameter": key, "value": settings[-1].value,
-            "layers": [{"layer": s.layer, "value": s.value, "source": s.source, "effective": i == len(settings) - 1}
-                       for i, s in enumerate(settings)]}
+        raise SpecError(
+            f"{robot_name}.{node} has no parameter {name!r} in any layer"
+            + (f" (parameters: {', '.join(known)})" if known else f" (no node {node!r})"),
+            Location(f"--explain {key}"),
+        )
+    return {
+        "parameter": key,
+        "value": settings[-1].value,
+        "layers": [
+            {"layer": s.layer, "value": s.value, "source": s.source, "effective": i == len(settings) - 1}
+            for i, s in enumerate(settings)
+        ],
+    }
 
 
 def print_explain(data: dict[str, Any], console) -> None:
@@ -89,9 +131,13 @@ def print_explain(data: dict[str, Any], console) -> None:
 
     layers = make_table("layer", "value", "source", "", title=f"{data['parameter']} = {format_value(data['value'])}")
     for layer in data["layers"]:
-        layers.add_row(layer["layer"], format_value(layer["value"]), layer["source"],
-                      "effective" if layer["effective"] else "overridden",
-                      style="bold" if layer["effective"] else "dim")
+        layers.add_row(
+            layer["layer"],
+            format_value(layer["value"]),
+            layer["source"],
+            "effective" if layer["effective"] else "overridden",
+            style="bold" if layer["effective"] else "dim",
+        )
     console.print(layers)
 
 

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
 
-class Format(str, Enum):
+class Format(StrEnum):
     yaml = "yaml"
     py = "py"
     both = "both"
@@ -24,10 +23,10 @@ def register(app: typer.Typer) -> None:
 
 def render(
     spec: Path = typer.Argument(..., help="Fleet spec file, e.g. fleets/two_robots.yaml."),
-    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write launch and parameter files here."),
+    output: Path | None = typer.Option(None, "--output", "-o", help="Write launch and parameter files here."),
     format: Format = typer.Option(Format.both, "--format", help="Launch file format to write: yaml, py or both."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
-    explain: Optional[str] = typer.Option(None, "--explain", help="Show the layers of ROBOT.NODE.PARAM."),
+    explain: str | None = typer.Option(None, "--explain", help="Show the layers of ROBOT.NODE.PARAM."),
     json: bool = typer.Option(False, "--json", help="Print machine-readable JSON instead of tables."),
 ) -> None:
     """Expand SPEC into per-robot namespaced launch descriptions and parameter files.
@@ -52,8 +51,11 @@ def render(
         out = console()
         for warning in expansion.warnings:
             out.print(f"[yellow]warning:[/yellow] {warning}")
-        out.print(f"wrote {len(written)} files for {len(expansion.robots)} robots"
-                  + (" and the world" if expansion.bundle("world") else "") + f" to {output}/")
+        out.print(
+            f"wrote {len(written)} files for {len(expansion.robots)} robots"
+            + (" and the world" if expansion.bundle("world") else "")
+            + f" to {output}/"
+        )
 
 
 def load_and_expand(spec: Path, sets: list[str]):

@@ -29,8 +29,10 @@ def _print_line(process: str, line: str) -> None:
 
 
 def _summary(session) -> str:
-    rows = [f"fleet: {session.path.name}: {session.backend} backend, isolation {session.isolation}, "
-            f"logs in {session.log_dir}"]  # fmt: skip
+    rows = [
+        f"fleet: {session.path.name}: {session.backend} backend, isolation {session.isolation}, "
+        f"logs in {session.log_dir}"
+    ]
     for status in session.status():
         rows.append(f"  {status.process:<16} pid {status.pid or '-':<8} {status.fqn or status.name}")
     return "\n".join(rows)
@@ -40,8 +42,9 @@ def run(
     file: Path = typer.Argument(..., help="A ROS 2 YAML launch file (.launch.yaml)."),
     launch_args: list[str] = typer.Argument(None, help="Launch arguments, name:=value."),
     isolation: str = typer.Option(
-        "process", "--isolation", help="process: one process per node; robot: the robot's "
-        "fleet_nodes share one process."
+        "process",
+        "--isolation",
+        help="process: one process per node; robot: the robot's fleet_nodes share one process.",
     ),
     backend: str = typer.Option(
         "auto", "--backend", help="auto (ros2 launch when installed, else embedded), embedded, ros2."

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -15,8 +14,14 @@ def register(app: typer.Typer) -> None:
     @app.command("world")
     def world(
         config: Path = typer.Option(..., "--config", help="world.yaml describing obstacles and robots."),
-        status_file: Optional[Path] = typer.Option(None, "--status-file", help="Write the world's state here (JSON, atomically, a few times a second); robots restart from the poses in it."),
-        as_fast_as_possible: bool = typer.Option(False, "--as-fast-as-possible", help="Do not pace to the wall clock (tests, benchmarks)."),
+        status_file: Path | None = typer.Option(
+            None,
+            "--status-file",
+            help="Write the world's state here (JSON, atomically, a few times a second); robots restart from the poses in it.",
+        ),
+        as_fast_as_possible: bool = typer.Option(
+            False, "--as-fast-as-possible", help="Do not pace to the wall clock (tests, benchmarks)."
+        ),
     ) -> None:
         """Run the shared PyBullet world hosting every simulated robot (until Ctrl-C).
 
@@ -32,11 +37,19 @@ def register(app: typer.Typer) -> None:
     @app.command("snapshot")
     def snapshot(
         output: Path = typer.Option(Path("world.png"), "-o", "--output", help="PNG to write."),
-        fleet: Optional[str] = typer.Option(None, "--fleet", "-f", help="Fleet whose world to draw (needed when several fleets run one)."),
-        connect: Optional[str] = ConnectOption,
-        zenoh_config: Optional[Path] = ZenohConfigOption,
-        status_file: Optional[Path] = typer.Option(None, "--status-file", help="Draw from this local status file (written by `fleet world --status-file`) instead of asking the control plane."),
-        config: Optional[Path] = typer.Option(None, "--config", help="world.yaml to take the obstacles from (default: those the world reports)."),
+        fleet: str | None = typer.Option(
+            None, "--fleet", "-f", help="Fleet whose world to draw (needed when several fleets run one)."
+        ),
+        connect: str | None = ConnectOption,
+        zenoh_config: Path | None = ZenohConfigOption,
+        status_file: Path | None = typer.Option(
+            None,
+            "--status-file",
+            help="Draw from this local status file (written by `fleet world --status-file`) instead of asking the control plane.",
+        ),
+        config: Path | None = typer.Option(
+            None, "--config", help="world.yaml to take the obstacles from (default: those the world reports)."
+        ),
     ) -> None:
         """Draw a top-down picture of the world now: obstacles, robots, trails and lidar hits.
 
@@ -47,11 +60,10 @@ def register(app: typer.Typer) -> None:
         if not output.parent.is_dir():
             raise FleetError("no such directory to write the picture in", Location(output))
         if status_file is not None and (fleet or connect or zenoh_config):
-            raise FleetError("--status-file reads a local file: it does not go with --fleet, --connect or --zenoh-config")
-        if status_file is not None:
-            document = _local_world(status_file)
-        else:
-            document = _remote_world(fleet, connect, zenoh_config)
+            raise FleetError(
+                "--status-file reads a local file: it does not go with --fleet, --connect or --zenoh-config"
+            )
+        document = _local_world(status_file) if status_file is not None else _remote_world(fleet, connect, zenoh_config)
         from fleet.world.snapshot import draw_snapshot
         from fleet.world.status import obstacle_dict
 
@@ -70,15 +82,16 @@ def _local_world(status_file: Path):
 
     data = read_status(status_file)
     if data is None:
-        raise FleetError("no readable world status here (is `fleet world --status-file` running?)",
-                         Location(status_file))  # fmt: skip
+        raise FleetError(
+            "no readable world status here (is `fleet world --status-file` running?)", Location(status_file)
+        )
     try:
         return world_document(data)
     except ValueError as error:
         raise FleetError(f"not a world status file: {error}", Location(status_file)) from None
 
 
-def _remote_world(fleet: Optional[str], connect: Optional[str], zenoh_config: Optional[Path]):
+def _remote_world(fleet: str | None, connect: str | None, zenoh_config: Path | None):
     """One status query finds the agent running the world; that agent sends the whole state."""
     import time
 

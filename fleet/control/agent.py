@@ -49,8 +49,14 @@ DESIRED_TIMEOUT = 5.0
 
 
 class Agent:
-    def __init__(self, name: str, connect: list[str], state_dir: Path, zenoh_config: Path | None = None,
-                 address: str | None = None):
+    def __init__(
+        self,
+        name: str,
+        connect: list[str],
+        state_dir: Path,
+        zenoh_config: Path | None = None,
+        address: str | None = None,
+    ):
         from fleet.dataplane.discovery import address_towards
 
         problem = p.key_name_problem(name)
@@ -213,10 +219,12 @@ class Agent:
             held = {fleet: state.generation for fleet, state in self._fleets.items()}
         try:
             replies = session.get(
-                p.desired_key("*", self.name), payload=p.encode(p.DesiredQuery(held=held)),
-                target=zenoh.QueryTarget.ALL, consolidation=zenoh.QueryConsolidation(zenoh.ConsolidationMode.NONE),
+                p.desired_key("*", self.name),
+                payload=p.encode(p.DesiredQuery(held=held)),
+                target=zenoh.QueryTarget.ALL,
+                consolidation=zenoh.QueryConsolidation(zenoh.ConsolidationMode.NONE),
                 timeout=DESIRED_TIMEOUT,
-            )  # fmt: skip
+            )
             for reply in replies:
                 if reply.ok is None:
                     log.warning("router refused the desired-state query: %s", reply.err.payload.to_bytes()[:200])
@@ -229,8 +237,12 @@ class Agent:
                 if request.generation <= held.get(request.fleet, -1):
                     continue  # never go back: the later generation wins
                 result = self.apply(request)
-                log.info("fetched desired state of fleet %s, generation %d: %s", request.fleet,
-                         request.generation, "accepted" if result.accepted else result.reason)  # fmt: skip
+                log.info(
+                    "fetched desired state of fleet %s, generation %d: %s",
+                    request.fleet,
+                    request.generation,
+                    "accepted" if result.accepted else result.reason,
+                )
         except zenoh.ZError as error:  # no router right now: the next round tries again
             log.debug("cannot fetch desired states: %s", error)
         except Exception:  # never let this take the agent down: the next round tries again
@@ -242,9 +254,12 @@ class Agent:
             held = self._fleets.get(request.fleet)
             held_generation = held.generation if held else -1
             reply = p.ApplyReply(
-                fleet=request.fleet, agent=self.name, generation=request.generation,
-                accepted=False, current_generation=max(held_generation, 0),
-            )  # fmt: skip
+                fleet=request.fleet,
+                agent=self.name,
+                generation=request.generation,
+                accepted=False,
+                current_generation=max(held_generation, 0),
+            )
             if request.generation < held_generation:
                 reply.reason = f"superseded: this agent already holds generation {held_generation}"
                 return reply
@@ -259,9 +274,10 @@ class Agent:
             overrides = {}
             if held:
                 overrides = {
-                    robot: values for robot, values in held.overrides.items()
+                    robot: values
+                    for robot, values in held.overrides.items()
                     if robot in changes.unchanged or robot in changes.hot_update
-                }  # fmt: skip
+                }
             state = FleetState(request=request, overrides=overrides)
             self.store.save(state)  # persisted before we acknowledge
             self._fleets[request.fleet] = state
@@ -269,8 +285,12 @@ class Agent:
             # at once lets a no-op deploy finish on its first status poll.
             for name in changes.unchanged:
                 unit = self._units.get((request.fleet, name))
-                if unit is not None and unit.session is not None and not unit.error and (
-                    unit.bundle.digest, unit.bundle.hot_digest) == (desired[name].digest, desired[name].hot_digest):
+                if (
+                    unit is not None
+                    and unit.session is not None
+                    and not unit.error
+                    and (unit.bundle.digest, unit.bundle.hot_digest) == (desired[name].digest, desired[name].hot_digest)
+                ):
                     unit.generation = request.generation
         self._work.put(request.fleet)
         self._update_tokens()
@@ -377,11 +397,18 @@ class Agent:
             return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
         config = directory / f"{fleet}.bridge.json"
         directory.mkdir(parents=True, exist_ok=True)
-        write_atomic(config, json.dumps({
-            "fleet": fleet, "connect": self.connect, "zenoh_config": str(self.zenoh_config) if self.zenoh_config else None,
-            "exports": [r.model_dump() for r in request.bridge.exports],
-            "imports": [r.model_dump() for r in request.bridge.imports],
-        }))  # fmt: skip
+        write_atomic(
+            config,
+            json.dumps(
+                {
+                    "fleet": fleet,
+                    "connect": self.connect,
+                    "zenoh_config": str(self.zenoh_config) if self.zenoh_config else None,
+                    "exports": [r.model_dump() for r in request.bridge.exports],
+                    "imports": [r.model_dump() for r in request.bridge.imports],
+                }
+            ),
+        )
         command = [sys.executable, "-m", "fleet.dataplane.bridge", str(config)]
         env = self._unit_env(request.domain_id, request.discovery_server)
         return ServiceProcess(key, command, env, directory / f"{fleet}.bridge.log")
@@ -468,8 +495,13 @@ class Agent:
         for bundle in state.request.bundles:  # accepted, not yet started by the reconcile thread
             if bundle.name not in seen:
                 reply.robots.append(
-                    p.RobotState(name=bundle.name, kind=bundle.kind, state="pending", digest=bundle.digest,
-                                 hot_digest=bundle.hot_digest)  # fmt: skip
+                    p.RobotState(
+                        name=bundle.name,
+                        kind=bundle.kind,
+                        state="pending",
+                        digest=bundle.digest,
+                        hot_digest=bundle.hot_digest,
+                    )
                 )
         return reply
 
@@ -484,8 +516,11 @@ class Agent:
             raise p.ProtocolError(f"agent {self.name} runs no world of fleet {request.fleet!r}", "not_found")
         data = worlds[0].world_file()
         if data is None:
-            raise p.ProtocolError(f"the world of fleet {request.fleet!r} has not reported its state yet "
-                                  f"(starting, or not running: see `fleet logs world`)", "not_found")  # fmt: skip
+            raise p.ProtocolError(
+                f"the world of fleet {request.fleet!r} has not reported its state yet "
+                f"(starting, or not running: see `fleet logs world`)",
+                "not_found",
+            )
         try:
             document = p.world_document(data)
         except ValueError as error:
@@ -603,4 +638,3 @@ def stop_leftover_processes(state_dir: Path) -> int:
         log.warning("stopping %d processes left from a previous run", len(leftovers))
         terminate(leftovers)
     return len(leftovers)
-

@@ -25,7 +25,7 @@ class ControlClient:
     def close(self) -> None:
         self.session.close()
 
-    def __enter__(self) -> "ControlClient":
+    def __enter__(self) -> ControlClient:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -83,8 +83,9 @@ class ControlClient:
 
     def world(self, fleet: str, agent: str, timeout: float = STATUS_TIMEOUT) -> p.WorldReply:
         """The full world state (trails, lidar hits, obstacles) from the agent running it."""
-        return self.request(p.world_key(fleet, agent), p.WorldRequest(fleet=fleet), p.WorldReply,
-                            f"agent {agent}", timeout=timeout)  # fmt: skip
+        return self.request(
+            p.world_key(fleet, agent), p.WorldRequest(fleet=fleet), p.WorldReply, f"agent {agent}", timeout=timeout
+        )
 
     def put_plan(self, plan: p.PlanRecord) -> None:
         self.session.put(p.plan_key(plan.fleet), p.encode(plan))

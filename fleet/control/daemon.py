@@ -67,9 +67,13 @@ def start(listen: str, zenoh_config: Path | None = None, root: Path | None = Non
         command += ["--zenoh-config", str(zenoh_config)]
     with open(root / "daemon.log", "ab") as log_file:
         process = subprocess.Popen(
-            command, stdin=subprocess.DEVNULL, stdout=log_file, stderr=subprocess.STDOUT,
-            start_new_session=True, close_fds=True,
-        )  # fmt: skip
+            command,
+            stdin=subprocess.DEVNULL,
+            stdout=log_file,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            close_fds=True,
+        )
     pid_file(root).write_text(f"{process.pid}\n")
     if not _local_agent_answers(listen, zenoh_config, process, START_TIMEOUT):
         stop(root)

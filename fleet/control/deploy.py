@@ -25,7 +25,9 @@ def new_generation() -> int:
     return time.time_ns()
 
 
-def requests_for(expansion, generation: int, serving: set[str], discovery: DiscoveryPlan | None = None) -> list[p.ApplyRequest]:
+def requests_for(
+    expansion, generation: int, serving: set[str], discovery: DiscoveryPlan | None = None
+) -> list[p.ApplyRequest]:
     """A complete desired state for every agent with bundles, and an empty one for agents that
     run this fleet now but get nothing from this spec (so they stop its robots).  `discovery`
     says where the fleet's DDS discovery server runs (None: nowhere, nodes stay on their computer)."""
@@ -37,10 +39,15 @@ def requests_for(expansion, generation: int, serving: set[str], discovery: Disco
     now = time.time()
     requests = [
         p.ApplyRequest(
-            fleet=expansion.fleet, agent=agent, generation=generation, domain_id=expansion.domain_id,
-            bundles=bundles, sent_at=now,
-            discovery_server=discovery.server if discovery else None, discovery_host=discovery.host if discovery else None,
-        )  # fmt: skip
+            fleet=expansion.fleet,
+            agent=agent,
+            generation=generation,
+            domain_id=expansion.domain_id,
+            bundles=bundles,
+            sent_at=now,
+            discovery_server=discovery.server if discovery else None,
+            discovery_host=discovery.host if discovery else None,
+        )
         for agent, bundles in sorted(by_agent.items())
     ]
     if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
@@ -58,15 +65,17 @@ def _world_agent(expansion) -> str | None:
     return next((bundle.agent for bundle in expansion.bundles if bundle.kind == "world"), None)
 
 
-def with_planned_agents(requests: list[p.ApplyRequest], registries: list[p.RegistryReply], fleet: str,
-                        generation: int, domain_id: int) -> list[p.ApplyRequest]:
+def with_planned_agents(
+    requests: list[p.ApplyRequest], registries: list[p.RegistryReply], fleet: str, generation: int, domain_id: int
+) -> list[p.ApplyRequest]:
     """`requests` plus an empty desired state for every agent the last plan placed robots on
     that gets none now (an agent away right now stops them when it comes back)."""
     planned = {agent for r in registries if r.fleet == fleet and r.plan for agent in r.plan.robots.values()}
     missing = sorted(planned - {request.agent for request in requests})
     return requests + [
-        p.ApplyRequest(fleet=fleet, agent=agent, generation=generation, domain_id=domain_id, bundles=[],
-                       sent_at=time.time())  # fmt: skip
+        p.ApplyRequest(
+            fleet=fleet, agent=agent, generation=generation, domain_id=domain_id, bundles=[], sent_at=time.time()
+        )
         for agent in missing
     ]
 
@@ -148,9 +157,7 @@ class Outcome:
 
     @property
     def refused(self) -> dict[str, str]:
-        return {
-            agent: r.reason for agent, r in self.replies.items() if isinstance(r, p.ApplyReply) and not r.accepted
-        }
+        return {agent: r.reason for agent, r in self.replies.items() if isinstance(r, p.ApplyReply) and not r.accepted}
 
     @property
     def nothing_changed(self) -> bool:
@@ -160,9 +167,13 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return (
-            not self.unreachable and not self.refused and self.superseded_by is None and not self.timed_out
-            and self.view is not None and self.view.all_running
-        )  # fmt: skip
+            not self.unreachable
+            and not self.refused
+            and self.superseded_by is None
+            and not self.timed_out
+            and self.view is not None
+            and self.view.all_running
+        )
 
 
 def deploy(
@@ -179,8 +190,9 @@ def deploy(
     outcome.replies = client.send_applies(requests)
     # After the applies (an agent that took its apply directly then holds this generation already):
     # the router keeps each desired state for agents that were away, and the plan for status.
-    client.put_desired(with_planned_agents(requests, registries, expansion.fleet, outcome.generation,
-                                           expansion.domain_id))  # fmt: skip
+    client.put_desired(
+        with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
+    )
     client.put_plan(plan_record(expansion, outcome.generation))
     for reply in outcome.replies.values():
         if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
@@ -191,7 +203,7 @@ def deploy(
         statuses, registries = client.status(expansion.fleet)
         view = build_view(statuses, registries, time.time())
         outcome.view = view.only(expansion.fleet)
-        for (fleet, _agent), generation in view.generations.items():
+        for (_fleet, _agent), generation in view.generations.items():
             if generation > outcome.generation:
                 outcome.superseded_by = max(outcome.superseded_by or 0, generation)
         if on_progress is not None:
@@ -228,7 +240,9 @@ def _hopeless(view: FleetView, wanted: set[str], generation: int) -> bool:
     )
 
 
-def down(client: ControlClient, fleet: str, wait: bool = True, timeout: float = 30.0) -> dict[str, p.ApplyReply | ControlError]:
+def down(
+    client: ControlClient, fleet: str, wait: bool = True, timeout: float = 30.0
+) -> dict[str, p.ApplyReply | ControlError]:
     """Send every agent serving `fleet` an empty desired state (left with the router too, for
     agents away now) and forget the plan."""
     statuses, registries = client.status(fleet)
@@ -236,8 +250,14 @@ def down(client: ControlClient, fleet: str, wait: bool = True, timeout: float = 
     generation = new_generation()
     serving = sorted(view.agents_serving(fleet))
     requests = [
-        p.ApplyRequest(fleet=fleet, agent=agent, generation=generation,
-                       domain_id=view.domain_ids.get(fleet, 0), bundles=[], sent_at=time.time())  # fmt: skip
+        p.ApplyRequest(
+            fleet=fleet,
+            agent=agent,
+            generation=generation,
+            domain_id=view.domain_ids.get(fleet, 0),
+            bundles=[],
+            sent_at=time.time(),
+        )
         for agent in serving
     ]
     replies = client.send_applies(requests) if requests else {}

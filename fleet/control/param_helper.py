@@ -94,9 +94,9 @@ def _call(node, service_type, name: str, request):
 def main(argv: list[str]) -> int:
     op, fqn, name = argv[0], argv[1], argv[2]
     import rclpy
-    from rclpy.parameter import Parameter
     from rcl_interfaces.msg import ParameterType
     from rcl_interfaces.srv import GetParameters, SetParameters
+    from rclpy.parameter import Parameter
 
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"])
     node = rclpy.create_node(f"fleet_param_{__import__('os').getpid()}")

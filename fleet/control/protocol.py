@@ -208,7 +208,7 @@ class BundleMessage(BaseModel):
         return files
 
     @model_validator(mode="after")
-    def _entry_and_hot_files_exist(self) -> "BundleMessage":
+    def _entry_and_hot_files_exist(self) -> BundleMessage:
         if self.entry not in self.files:
             raise ValueError(f"entry {self.entry!r} is not among the bundle's files")
         for name in self.hot_files:
@@ -221,7 +221,7 @@ class BundleMessage(BaseModel):
         return hot_digest(self.files, self.hot_files)
 
     @classmethod
-    def from_bundle(cls, bundle: Any) -> "BundleMessage":
+    def from_bundle(cls, bundle: Any) -> BundleMessage:
         return cls(
             name=bundle.name,
             kind=bundle.kind,
@@ -275,7 +275,7 @@ class ApplyRequest(Message):
         return value
 
     @model_validator(mode="after")
-    def _unique_bundle_names(self) -> "ApplyRequest":
+    def _unique_bundle_names(self) -> ApplyRequest:
         names = [bundle.name for bundle in self.bundles]
         duplicates = sorted({name for name in names if names.count(name) > 1})
         if duplicates:
@@ -435,7 +435,7 @@ class Obstacle(WorldData):
     height: float | None = None
 
     @model_validator(mode="after")
-    def _has_its_dimensions(self) -> "Obstacle":
+    def _has_its_dimensions(self) -> Obstacle:
         if self.type == "cylinder" and self.radius is None:
             raise ValueError(f"obstacle {self.name!r}: a cylinder needs a radius")
         if self.type == "box" and self.size is None:
@@ -545,7 +545,7 @@ class ParamRequest(Message):
     value: ParamValue | None = None
 
     @model_validator(mode="after")
-    def _set_has_value(self) -> "ParamRequest":
+    def _set_has_value(self) -> ParamRequest:
         if self.op == "set" and self.value is None:
             raise ValueError("a set needs a value")
         return self
@@ -619,9 +619,7 @@ def decode(payload: bytes | None, model: type[Message]) -> Any:
     if not isinstance(data, dict):
         raise ProtocolError("a message must be a JSON object", "malformed")
     if data.get("v") != VERSION:
-        raise ProtocolError(
-            f"unsupported protocol version {data.get('v')!r} (this side speaks {VERSION})", "version"
-        )
+        raise ProtocolError(f"unsupported protocol version {data.get('v')!r} (this side speaks {VERSION})", "version")
     expected_kind = model.model_fields["kind"].default
     if data.get("kind") == "error" and model is not ErrorReply:
         error = ErrorReply.model_validate(data)

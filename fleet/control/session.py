@@ -79,8 +79,9 @@ def client_config(connect: list[str], user_config: Path | None = None, lease_ms:
     # Daemons (agents) reconnect when the router comes back: try every second at most, not
     # Zenoh's default back-off to 4 s, so `fleet status` works again soon after a router restart.
     if lease_ms is not None:
-        _set_unless_user_set(config, "connect/retry", {"period_init_ms": 250, "period_max_ms": 1000,
-                                                       "period_increase_factor": 2})
+        _set_unless_user_set(
+            config, "connect/retry", {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
+        )
     return config
 
 

@@ -198,9 +198,7 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
             data = yaml.safe_load(text)
         except yaml.YAMLError:
             continue
-        if not isinstance(data, dict) or not any(
-            isinstance(v, dict) and "ros__parameters" in v for v in data.values()
-        ):
+        if not isinstance(data, dict) or not any(isinstance(v, dict) and "ros__parameters" in v for v in data.values()):
             continue
         params_files.append(name)
         changed = False

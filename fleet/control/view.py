@@ -95,16 +95,17 @@ class FleetView:
     def all_running(self) -> bool:
         return all(robot.state == "running" for robot in self.robots)
 
-    def only(self, fleet: str) -> "FleetView":
+    def only(self, fleet: str) -> FleetView:
         """This view cut down to one fleet (every agent kept)."""
         return FleetView(
-            agents=self.agents, robots=self.robots_of(fleet),
+            agents=self.agents,
+            robots=self.robots_of(fleet),
             generations={key: g for key, g in self.generations.items() if key[0] == fleet},
             domain_ids={f: d for f, d in self.domain_ids.items() if f == fleet},
             worlds=[world for world in self.worlds if world.fleet == fleet],
             discovery={f: d for f, d in self.discovery.items() if f == fleet},
             bridges={f: b for f, b in self.bridges.items() if f == fleet},
-        )  # fmt: skip
+        )
 
     def robots_of(self, fleet: str) -> list[RobotRow]:
         return [robot for robot in self.robots if robot.fleet == fleet]
@@ -152,16 +153,27 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             worlds[status.fleet] = (info.name, status.world)
         if status.discovery_server:
             discovery.setdefault(status.fleet, []).append(
-                {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid})
+                {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid}
+            )
         if status.bridge_pid is not None:
             bridges.setdefault(status.fleet, {})[info.name] = status.bridge_pid
         for robot in status.robots:
             robots[(status.fleet, robot.name)] = RobotRow(
-                fleet=status.fleet, name=robot.name, kind=robot.kind, agent=info.name, state=robot.state,
-                running=robot.running, total=robot.total, restarts=robot.restarts, generation=robot.generation,
-                digest=robot.digest, hot_digest=robot.hot_digest, overrides=robot.overrides, error=robot.error,
+                fleet=status.fleet,
+                name=robot.name,
+                kind=robot.kind,
+                agent=info.name,
+                state=robot.state,
+                running=robot.running,
+                total=robot.total,
+                restarts=robot.restarts,
+                generation=robot.generation,
+                digest=robot.digest,
+                hot_digest=robot.hot_digest,
+                overrides=robot.overrides,
+                error=robot.error,
                 nodes=[node.model_dump() for node in robot.nodes],
-            )  # fmt: skip
+            )
 
     for registry in registries:
         for name, seen in registry.agents.items():
@@ -181,7 +193,9 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             row = RobotRow(registry.fleet, robot, kind, agent, state)
             if state == "offline":
                 seen = agents[agent].last_seen
-                row.reason = f"agent {agent} does not answer" + ("" if seen is None else f" (last seen {seen:.0f} s ago)")
+                row.reason = f"agent {agent} does not answer" + (
+                    "" if seen is None else f" (last seen {seen:.0f} s ago)"
+                )
             robots[(registry.fleet, robot)] = row
 
     for (fleet, name), row in robots.items():
@@ -200,11 +214,18 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             judge_data_flow([row for (f, _), row in robots.items() if f == fleet], world_row, summary)
 
     world_rows = [
-        WorldRow(fleet=fleet, agent=agent, sim_time=world.sim_time, real_time_factor=world.real_time_factor,
-                 robots=len(world.robots), contacts=world.contacts.model_dump(),
-                 errors=[problem.model_dump() for problem in world.errors], age=world.age)
+        WorldRow(
+            fleet=fleet,
+            agent=agent,
+            sim_time=world.sim_time,
+            real_time_factor=world.real_time_factor,
+            robots=len(world.robots),
+            contacts=world.contacts.model_dump(),
+            errors=[problem.model_dump() for problem in world.errors],
+            age=world.age,
+        )
         for fleet, (agent, world) in sorted(worlds.items())
-    ]  # fmt: skip
+    ]
     return FleetView(
         agents=sorted(agents.values(), key=lambda a: a.name),
         robots=sorted(robots.values(), key=lambda r: (r.fleet, r.kind != "world", r.name)),

@@ -16,6 +16,7 @@ drop.  The process exits 0 on SIGTERM/SIGINT, 2 on a bad config.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import logging
@@ -55,10 +56,11 @@ class Bridge:
             publisher = session.declare_publisher(
                 data_key(fleet, route.name),
                 congestion_control=zenoh.CongestionControl.BLOCK if route.reliable else zenoh.CongestionControl.DROP,
-            )  # fmt: skip
+            )
             self._keep.append(publisher)
-            node.create_subscription(message_class(route.type), route.name, self._sender(publisher), ros_qos(route),
-                                     raw=True)  # fmt: skip
+            node.create_subscription(
+                message_class(route.type), route.name, self._sender(publisher), ros_qos(route), raw=True
+            )
         for route in imports:
             publisher = node.create_publisher(message_class(route.type), route.name, ros_qos(route))
             self._keep.append(session.declare_subscriber(data_key(fleet, route.name), self._receiver(publisher)))
@@ -81,16 +83,14 @@ class Bridge:
 def _spin(executor) -> None:
     from rclpy.executors import ExternalShutdownException
 
-    try:
+    with contextlib.suppress(ExternalShutdownException):
         executor.spin()
-    except ExternalShutdownException:
-        pass
 
 
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s fleet.bridge %(levelname)s %(message)s")
-    from fleet.dataplane.topics import BridgeRoutes
     from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
+    from fleet.dataplane.topics import BridgeRoutes
 
     try:
         config = json.loads(Path(argv[0]).read_text())
@@ -116,14 +116,21 @@ def main(argv: list[str]) -> int:
         if session is None:
             return 0
         bridge = Bridge(fleet, routes.exports, routes.imports, session, node)
-        log.info("bridge of fleet %s: %d topics out, %d in, through %s", fleet, len(routes.exports),
-                 len(routes.imports), ", ".join(connect))  # fmt: skip
+        log.info(
+            "bridge of fleet %s: %d topics out, %d in, through %s",
+            fleet,
+            len(routes.exports),
+            len(routes.imports),
+            ", ".join(connect),
+        )
         # spin() handles every ready callback of one wait; a spin_once loop would rebuild the wait
         # set (hundreds of subscriptions) for each message.
         spinner = threading.Thread(target=_spin, args=(executor,), name="fleet-bridge-ros", daemon=True)
         spinner.start()
         stop.wait()
-        log.info("bridge of fleet %s stopping: %d messages out, %d in", fleet, bridge.counts["out"], bridge.counts["in"])
+        log.info(
+            "bridge of fleet %s stopping: %d messages out, %d in", fleet, bridge.counts["out"], bridge.counts["in"]
+        )
     finally:
         executor.shutdown(timeout_sec=1.0)
         node.destroy_node()

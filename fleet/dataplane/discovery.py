@@ -29,7 +29,9 @@ class DiscoveryPlan:
     note: str = ""  # why the choice is not the usual one, for the person deploying
 
 
-def plan_discovery(world_agent: str | None, agents: list[str], addresses: dict[str, str], domain_id: int) -> DiscoveryPlan:
+def plan_discovery(
+    world_agent: str | None, agents: list[str], addresses: dict[str, str], domain_id: int
+) -> DiscoveryPlan:
     """Which agent runs the fleet's discovery server (pure).
 
     `agents`: the agents the fleet places units on; `addresses`: online agents -> address."""
@@ -39,10 +41,17 @@ def plan_discovery(world_agent: str | None, agents: list[str], addresses: dict[s
         return DiscoveryPlan(preferred, f"{addresses[preferred]}:{port}")
     for agent in sorted(agents):
         if addresses.get(agent):
-            return DiscoveryPlan(agent, f"{addresses[agent]}:{port}",
-                                 f"agent {preferred} is offline: agent {agent} runs the DDS discovery server")
-    return DiscoveryPlan(None, None, "no agent of the fleet is online to run its DDS discovery server: "
-                                     "its robots will only find ROS nodes on their own computer")
+            return DiscoveryPlan(
+                agent,
+                f"{addresses[agent]}:{port}",
+                f"agent {preferred} is offline: agent {agent} runs the DDS discovery server",
+            )
+    return DiscoveryPlan(
+        None,
+        None,
+        "no agent of the fleet is online to run its DDS discovery server: "
+        "its robots will only find ROS nodes on their own computer",
+    )
 
 
 def local_servers(agents: list[str], domain_id: int) -> dict[str, str]:
@@ -54,7 +63,9 @@ def local_servers(agents: list[str], domain_id: int) -> dict[str, str]:
 
 def server_program() -> Path | None:
     """The discovery server executable next to this interpreter, else on PATH."""
-    found = shutil.which(SERVER_PROGRAM, path=os.pathsep.join([str(Path(sys.prefix) / "bin"), os.environ.get("PATH", "")]))
+    found = shutil.which(
+        SERVER_PROGRAM, path=os.pathsep.join([str(Path(sys.prefix) / "bin"), os.environ.get("PATH", "")])
+    )
     return Path(found) if found else None
 
 

@@ -80,8 +80,12 @@ def bridge_routes(world_agent: str | None, robots: list[tuple[str, str, str]]) -
             continue
         robot = routes[agent]
         for crossing in ROBOT_TOPICS:
-            route = TopicRoute(name=f"{namespace.rstrip('/')}/{crossing.suffix}", type=crossing.type,
-                               reliable=crossing.reliable, depth=crossing.depth)  # fmt: skip
+            route = TopicRoute(
+                name=f"{namespace.rstrip('/')}/{crossing.suffix}",
+                type=crossing.type,
+                reliable=crossing.reliable,
+                depth=crossing.depth,
+            )
             (world.exports if crossing.from_world else world.imports).append(route)
             (robot.imports if crossing.from_world else robot.exports).append(route)
     return routes

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Literal, Mapping
+from typing import Literal
 
 from fleet.files import write_atomic
 
@@ -30,14 +31,22 @@ class Bundle:
     def digest(self) -> str:
         """Equal digests mean the running unit needs no restart (hot files are left out)."""
         cold = {name: text for name, text in sorted(self.files.items()) if name not in self.hot_files}
-        payload = json.dumps({"entry": self.entry, "options": dict(sorted(self.options.items())), "files": cold},
-                             sort_keys=True)
+        payload = json.dumps(
+            {"entry": self.entry, "options": dict(sorted(self.options.items())), "files": cold}, sort_keys=True
+        )
         return hashlib.sha256(payload.encode()).hexdigest()
 
     def to_json(self) -> dict:
-        return {"name": self.name, "kind": self.kind, "agent": self.agent, "entry": self.entry,
-                "files": dict(self.files), "options": dict(self.options), "hot_files": sorted(self.hot_files),
-                "digest": self.digest}
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "agent": self.agent,
+            "entry": self.entry,
+            "files": dict(self.files),
+            "options": dict(self.options),
+            "hot_files": sorted(self.hot_files),
+            "digest": self.digest,
+        }
 
     def write(self, directory: Path, names: set[str] | None = None, atomic: bool = True) -> None:
         """Write the files (or only `names`) into `directory`; atomically for running agents,
@@ -49,4 +58,3 @@ class Bundle:
                     write_atomic(directory / name, text)
                 else:
                     (directory / name).write_text(text, encoding="utf-8")
-

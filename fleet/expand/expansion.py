@@ -13,11 +13,11 @@ from typing import Any
 import yaml
 
 from fleet.errors import Location, SpecError, TemplateError
+from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, outline
 from fleet.expand.parameters import ParameterLayers, check_type_stable, parse_override
 from fleet.expand.python_launch import python_launch_source
-from fleet.expand import yaml_emit
 from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference
 from fleet.expand.templating import TemplateSet, builtin_template_dirs
 from fleet.spec.model import FleetSpec, Model, Robot
@@ -89,8 +89,9 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     overrides = [parse_override(text) for text in sets]
     shared_layers: dict[tuple, ParameterLayers] = {}  # per template and node set
     renderer = LaunchRenderer(templates, spec.fleet)
-    robots = [_plan_robot(spec, index, robot, templates, renderer, shared_layers)
-              for index, robot in enumerate(spec.robots)]
+    robots = [
+        _plan_robot(spec, index, robot, templates, renderer, shared_layers) for index, robot in enumerate(spec.robots)
+    ]
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
     warnings: list[str] = []
@@ -103,15 +104,26 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     return Expansion(spec=spec, robots=robots, bundles=bundles, warnings=sorted(set(warnings)))
 
 
-def _plan_robot(spec: FleetSpec, index: int, robot: Robot, templates: TemplateSet, renderer: LaunchRenderer,
-                shared_layers: dict[tuple, ParameterLayers]) -> RobotPlan:
+def _plan_robot(
+    spec: FleetSpec,
+    index: int,
+    robot: Robot,
+    templates: TemplateSet,
+    renderer: LaunchRenderer,
+    shared_layers: dict[tuple, ParameterLayers],
+) -> RobotPlan:
     template = robot.template or spec.defaults.template
     namespace = robot.namespace or f"/{robot.name}"
     arguments = {**spec.defaults.launch_args, **robot.launch_args}
     model = _model_of(spec, robot)
     context = {
-        "robot": {"name": robot.name, "namespace": namespace, "agent": robot.agent or spec.defaults.agent,
-                  "model": model.model_dump(), "pose": robot.pose.model_dump()},
+        "robot": {
+            "name": robot.name,
+            "namespace": namespace,
+            "agent": robot.agent or spec.defaults.agent,
+            "model": model.model_dump(),
+            "pose": robot.pose.model_dump(),
+        },
         "fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time},
         "params_file": params_file_reference(robot.name),
     }
@@ -122,25 +134,40 @@ def _plan_robot(spec: FleetSpec, index: int, robot: Robot, templates: TemplateSe
     if unknown:
         in_robot = unknown[0] in robot.launch_args
         path = ("robots", index, "launch_args", unknown[0]) if in_robot else ("defaults", "launch_args", unknown[0])
-        raise SpecError(f"template {template!r} declares no launch argument {unknown[0]!r} "
-                        f"(arguments: {', '.join(shape.arguments) or 'none'})", _spec_location(spec, path))
+        raise SpecError(
+            f"template {template!r} declares no launch argument {unknown[0]!r} "
+            f"(arguments: {', '.join(shape.arguments) or 'none'})",
+            _spec_location(spec, path),
+        )
     node_names = {node.name for node in shape.nodes}
     layers = _shared_layers(spec, templates, template, frozenset(node_names), shared_layers).copy()
     for node, values in robot.parameters.items():
         if node not in node_names:
-            raise SpecError(f"robot {robot.name}: template {template!r} starts no node {node!r} "
-                            f"(nodes: {', '.join(sorted(node_names))})",
-                            _spec_location(spec, ("robots", index, "parameters", node)))
+            raise SpecError(
+                f"robot {robot.name}: template {template!r} starts no node {node!r} "
+                f"(nodes: {', '.join(sorted(node_names))})",
+                _spec_location(spec, ("robots", index, "parameters", node)),
+            )
         layers.add(node, values, "robot", lambda key, node=node: spec.where("robots", index, "parameters", node, *key))
-    return RobotPlan(name=robot.name, namespace=namespace, agent=robot.agent or spec.defaults.agent,
-                     template=template, isolation=robot.isolation or spec.defaults.isolation,
-                     model=model, pose=context["robot"]["pose"], outline=shape,
-                     parameters=layers, launch_args={k: str(v) for k, v in arguments.items()},
-                     launch_text=rendered.text, launch_python=rendered.python)
+    return RobotPlan(
+        name=robot.name,
+        namespace=namespace,
+        agent=robot.agent or spec.defaults.agent,
+        template=template,
+        isolation=robot.isolation or spec.defaults.isolation,
+        model=model,
+        pose=context["robot"]["pose"],
+        outline=shape,
+        parameters=layers,
+        launch_args={k: str(v) for k, v in arguments.items()},
+        launch_text=rendered.text,
+        launch_python=rendered.python,
+    )
 
 
-def _shared_layers(spec: FleetSpec, templates: TemplateSet, template: str, node_names: frozenset[str],
-                   cache: dict) -> ParameterLayers:
+def _shared_layers(
+    spec: FleetSpec, templates: TemplateSet, template: str, node_names: frozenset[str], cache: dict
+) -> ParameterLayers:
     """The template's defaults and the spec's defaults: the same for every robot of a template,
     so merged once per template and node set, and copied per robot."""
     key = (template, node_names)
@@ -150,12 +177,17 @@ def _shared_layers(spec: FleetSpec, templates: TemplateSet, template: str, node_
     layers = ParameterLayers()
     for node, values in defaults.items():
         if node not in node_names:
-            raise TemplateError(f"defaults for node {node!r}, which template {template!r} does not start "
-                                f"(nodes: {', '.join(sorted(node_names))})", Location(defaults_file))
-        layers.add(node, values, "template", lambda key, node=node: str(defaults_source.locate((node,) + key)))
+            raise TemplateError(
+                f"defaults for node {node!r}, which template {template!r} does not start "
+                f"(nodes: {', '.join(sorted(node_names))})",
+                Location(defaults_file),
+            )
+        layers.add(node, values, "template", lambda key, node=node: str(defaults_source.locate((node, *key))))
     for node, values in spec.defaults.parameters.items():
         if node in node_names:
-            layers.add(node, values, "defaults", lambda key, node=node: spec.where("defaults", "parameters", node, *key))
+            layers.add(
+                node, values, "defaults", lambda key, node=node: spec.where("defaults", "parameters", node, *key)
+            )
     layers.template_defaults = defaults
     cache[key] = layers
     return layers
@@ -173,8 +205,9 @@ def _parse_rendered(text: str, template_file: Path, unit: str) -> Any:
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = f" at line {mark.line + 1} of its output" if mark else ""
-        raise TemplateError(f"rendered invalid YAML for {unit}{line}: {getattr(error, 'problem', error)}",
-                            Location(template_file)) from None
+        raise TemplateError(
+            f"rendered invalid YAML for {unit}{line}: {getattr(error, 'problem', error)}", Location(template_file)
+        ) from None
 
 
 def _template_defaults(templates: TemplateSet, template: str) -> tuple[dict, Path | None, SourceMap | None]:
@@ -209,9 +242,11 @@ def _check_default_nodes(spec: FleetSpec, robots: list[RobotPlan]) -> None:
     all_nodes = {node.name for plan in robots for node in plan.outline.nodes}
     for node in spec.defaults.parameters:
         if node not in all_nodes:
-            raise SpecError(f"defaults.parameters: no robot's template starts a node {node!r} "
-                            f"(nodes: {', '.join(sorted(all_nodes))})",
-                            _spec_location(spec, ("defaults", "parameters", node)))
+            raise SpecError(
+                f"defaults.parameters: no robot's template starts a node {node!r} "
+                f"(nodes: {', '.join(sorted(all_nodes))})",
+                _spec_location(spec, ("defaults", "parameters", node)),
+            )
 
 
 def _model_of(spec: FleetSpec, robot: Robot) -> Model:
@@ -225,8 +260,14 @@ def _robot_bundle(spec: FleetSpec, plan: RobotPlan) -> Bundle:
         f"{plan.name}.launch.py": plan.launch_python,
         f"{plan.name}.params.yaml": params_file_text(spec, plan),
     }
-    return Bundle(name=plan.name, kind="robot", agent=plan.agent, entry=f"{plan.name}.launch.yaml", files=files,
-                  options={"isolation": plan.isolation})
+    return Bundle(
+        name=plan.name,
+        kind="robot",
+        agent=plan.agent,
+        entry=f"{plan.name}.launch.yaml",
+        files=files,
+        options={"isolation": plan.isolation},
+    )
 
 
 def params_file_text(spec: FleetSpec, plan: RobotPlan) -> str:
@@ -237,9 +278,11 @@ def params_file_text(spec: FleetSpec, plan: RobotPlan) -> str:
         if node.fqn in sections:
             continue
         sections[node.fqn] = {"ros__parameters": unflatten(effective.get(node.name, {}))}
-    header = (f"# Parameters of robot {plan.name} in fleet {spec.fleet}, generated by fleet.\n"
-              f"# Layers, lowest first: template {plan.template} < spec defaults < robot < --set.\n"
-              f"# See where a value comes from: fleet render SPEC --explain {plan.name}.NODE.PARAMETER\n")
+    header = (
+        f"# Parameters of robot {plan.name} in fleet {spec.fleet}, generated by fleet.\n"
+        f"# Layers, lowest first: template {plan.template} < spec defaults < robot < --set.\n"
+        f"# See where a value comes from: fleet render SPEC --explain {plan.name}.NODE.PARAMETER\n"
+    )
     return header + yaml_emit.emit(sections)
 
 
@@ -252,16 +295,18 @@ def world_description(spec: FleetSpec) -> dict[str, Any]:
         if not robot.simulated:
             continue
         lidar = robot.lidar or spec.defaults.lidar
-        robots.append({
-            "name": robot.name,
-            "namespace": robot.namespace or f"/{robot.name}",
-            "model": _model_of(spec, robot).model_dump(),
-            "pose": robot.pose.model_dump(),
-            "lidar": lidar.model_dump(),
-            "odom_rate": world.odom_rate,
-            "cmd_timeout": world.cmd_timeout,
-            "ground_truth": True,
-        })
+        robots.append(
+            {
+                "name": robot.name,
+                "namespace": robot.namespace or f"/{robot.name}",
+                "model": _model_of(spec, robot).model_dump(),
+                "pose": robot.pose.model_dump(),
+                "lidar": lidar.model_dump(),
+                "odom_rate": world.odom_rate,
+                "cmd_timeout": world.cmd_timeout,
+                "ground_truth": True,
+            }
+        )
     obstacles = []
     for obstacle in world.obstacles:
         entry = {"name": obstacle.name, "type": obstacle.type, "position": list(obstacle.position), "yaw": obstacle.yaw}
@@ -270,8 +315,14 @@ def world_description(spec: FleetSpec) -> dict[str, Any]:
         else:
             entry["size"] = list(obstacle.size)
         obstacles.append(entry)
-    return {"fleet": spec.fleet, "physics_rate": world.physics_rate, "real_time": world.real_time,
-            "clock_rate": world.clock_rate, "obstacles": obstacles, "robots": robots}
+    return {
+        "fleet": spec.fleet,
+        "physics_rate": world.physics_rate,
+        "real_time": world.real_time,
+        "clock_rate": world.clock_rate,
+        "obstacles": obstacles,
+        "robots": robots,
+    }
 
 
 def _world_bundle(spec: FleetSpec, templates: TemplateSet) -> Bundle:
@@ -279,12 +330,21 @@ def _world_bundle(spec: FleetSpec, templates: TemplateSet) -> Bundle:
     rendered = templates.render(WORLD_TEMPLATE, context, {}, Location(spec.source_file))
     launch = _parse_rendered(rendered.text, rendered.template_file, WORLD)
     outline(launch, Location(rendered.template_file))
-    header = f"# The shared world of fleet {spec.fleet}, generated by fleet. Robots join and leave as this file changes.\n"
+    header = (
+        f"# The shared world of fleet {spec.fleet}, generated by fleet. Robots join and leave as this file changes.\n"
+    )
     files = {
         "world.launch.yaml": rendered.text,
         "world.launch.py": python_launch_source(launch, f"The shared world of fleet {spec.fleet}, generated by fleet."),
         "world.yaml": header + yaml_emit.emit(world_description(spec)),
     }
     agent = spec.world.agent or spec.defaults.agent
-    return Bundle(name=WORLD, kind="world", agent=agent, entry="world.launch.yaml", files=files,
-                  options={"isolation": "process"}, hot_files=frozenset({"world.yaml"}))
+    return Bundle(
+        name=WORLD,
+        kind="world",
+        agent=agent,
+        entry="world.launch.yaml",
+        files=files,
+        options={"isolation": "process"},
+        hot_files=frozenset({"world.yaml"}),
+    )

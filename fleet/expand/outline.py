@@ -12,8 +12,22 @@ from typing import Any
 
 from fleet.errors import Location, TemplateError
 
-_ACTIONS = {"arg", "let", "set_env", "unset_env", "group", "push_ros_namespace", "node", "include",
-            "executable", "log", "set_parameter", "set_remap", "timer", "declare_launch_argument"}
+_ACTIONS = {
+    "arg",
+    "let",
+    "set_env",
+    "unset_env",
+    "group",
+    "push_ros_namespace",
+    "node",
+    "include",
+    "executable",
+    "log",
+    "set_parameter",
+    "set_remap",
+    "timer",
+    "declare_launch_argument",
+}
 
 
 @dataclass(frozen=True)
@@ -53,7 +67,7 @@ def _walk(actions: list, namespace: str, arguments: dict, nodes: list, where: Lo
     for action in actions:
         if not isinstance(action, dict) or len(action) != 1:
             raise TemplateError(f"each launch action must be a mapping with one key, got {action!r:.60}", where)
-        (kind, body), = action.items()
+        ((kind, body),) = action.items()
         if kind not in _ACTIONS:
             raise TemplateError(f"unknown launch action {kind!r}", where)
         if kind == "group":
@@ -77,8 +91,15 @@ def _walk(actions: list, namespace: str, arguments: dict, nodes: list, where: Lo
                 full = str(node_namespace)
             else:
                 full = f"{namespace.rstrip('/')}/{node_namespace}"
-            nodes.append(NodeOutline(name=name, package=str(body.get("pkg", "")), executable=str(body.get("exec", "")),
-                                     namespace=full, conditional="if" in body or "unless" in body))
+            nodes.append(
+                NodeOutline(
+                    name=name,
+                    package=str(body.get("pkg", "")),
+                    executable=str(body.get("exec", "")),
+                    namespace=full,
+                    conditional="if" in body or "unless" in body,
+                )
+            )
 
 
 def _literal(body: Any, key: str, where: Location) -> str:

@@ -9,9 +9,10 @@ rcl (in Jazzy the last matching key applied wins, not the most specific).
 from __future__ import annotations
 
 import difflib
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Callable
+from typing import Any
 
 from fleet.errors import Location, SpecError
 from fleet.spec.params import coerce_like, flatten, normalize, value_problem
@@ -66,7 +67,7 @@ class ParameterLayers:
         self.history: dict[tuple[str, str], list[Setting]] = {}
         self.template_defaults: dict[str, dict[str, Any]] = {}  # node -> parameters, for typo warnings
 
-    def copy(self) -> "ParameterLayers":
+    def copy(self) -> ParameterLayers:
         other = ParameterLayers()
         other.history = {key: list(settings) for key, settings in self.history.items()}
         other.template_defaults = self.template_defaults
@@ -101,8 +102,9 @@ class ParameterLayers:
             if declared and name not in declared:
                 hint = difflib.get_close_matches(name, list(declared), n=1)
                 guess = f" (did you mean {hint[0]!r}?)" if hint else ""
-                warnings.append(f"{settings[-1].source}: {node}.{name} is not a parameter of the template's "
-                                f"{node} defaults{guess}")
+                warnings.append(
+                    f"{settings[-1].source}: {node}.{name} is not a parameter of the template's {node} defaults{guess}"
+                )
         return warnings
 
 
@@ -112,8 +114,11 @@ def check_type_stable(layers: ParameterLayers, robot: str) -> None:
         first = settings[0]
         for later in settings[1:]:
             if _type_name(later.value) != _type_name(first.value):
-                raise SpecError(f"robot {robot}: {node}.{name} is {_type_name(first.value)} in the {first.layer} layer "
-                                f"({first.source}) but {_type_name(later.value)} here", Location(later.source))
+                raise SpecError(
+                    f"robot {robot}: {node}.{name} is {_type_name(first.value)} in the {first.layer} layer "
+                    f"({first.source}) but {_type_name(later.value)} here",
+                    Location(later.source),
+                )
 
 
 def _type_name(value: Any) -> str:

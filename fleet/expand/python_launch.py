@@ -12,7 +12,7 @@ from typing import Any
 
 _SUBSTITUTION = re.compile(r"\$\(([^()]*)\)")
 
-_HEADER = '''\
+_HEADER = """\
 {comment}
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, GroupAction, SetEnvironmentVariable, SetLaunchConfiguration
@@ -24,7 +24,7 @@ from launch_ros.substitutions import FindPackageShare
 
 def generate_launch_description():
     return LaunchDescription(
-'''
+"""
 
 
 def python_launch_source(launch: dict, comment: str) -> str:
@@ -42,14 +42,16 @@ def _actions(actions: list, indent: int) -> str:
 
 
 def _action(action: dict, indent: int) -> str:
-    (kind, body), = action.items()
+    ((kind, body),) = action.items()
     if kind == "group":
         children = body if isinstance(body, list) else body.get("actions", [])
         options = {} if isinstance(body, list) else body
         kwargs = _condition(options)
         scoped = options.get("scoped", True)
-        return (f"GroupAction(\n{_actions(children, indent + 4)},\n{' ' * (indent + 4)}scoped={bool(scoped)!r}"
-                f"{kwargs},\n{' ' * indent})")
+        return (
+            f"GroupAction(\n{_actions(children, indent + 4)},\n{' ' * (indent + 4)}scoped={bool(scoped)!r}"
+            f"{kwargs},\n{' ' * indent})"
+        )
     if kind == "push_ros_namespace":
         return f"PushRosNamespace({_expr(body['namespace'])}{_condition(body)})"
     if kind == "arg":
@@ -137,7 +139,7 @@ def split_arguments(text: str) -> list[str]:
     """Split at whitespace outside $(...), as launch's frontend splits `args`/`ros_args`."""
     tokens, current, depth = [], "", 0
     for index, char in enumerate(text):
-        if char == "(" and text[index - 1:index] == "$":
+        if char == "(" and text[index - 1 : index] == "$":
             depth += 1
         elif char == ")" and depth:
             depth -= 1
@@ -163,7 +165,7 @@ def _expr(value: Any) -> str:
     position = 0
     for match in _SUBSTITUTION.finditer(text):
         if match.start() > position:
-            parts.append(repr(text[position:match.start()]))
+            parts.append(repr(text[position : match.start()]))
         parts.append(_substitution(match.group(1).split()))
         position = match.end()
     if position < len(text):

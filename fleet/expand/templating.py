@@ -91,13 +91,16 @@ class TemplateSet:
         candidate = template.with_name(f"{name}{DEFAULTS_SUFFIX}")
         return candidate if candidate.is_file() else None
 
-    def render(self, name: str, context: dict[str, Any], arguments: dict[str, Any],
-               where: Location) -> RenderedTemplate:
+    def render(
+        self, name: str, context: dict[str, Any], arguments: dict[str, Any], where: Location
+    ) -> RenderedTemplate:
         """Render template `name`; `arguments` are the launch argument values given for this unit."""
         path = self.find(name)
         if path is None:
             searched = ", ".join(str(d) for d in self.directories) or "no directories"
-            raise TemplateError(f"template {name!r} not found (looked for {name}{TEMPLATE_SUFFIX} in {searched})", where)
+            raise TemplateError(
+                f"template {name!r} not found (looked for {name}{TEMPLATE_SUFFIX} in {searched})", where
+            )
         asked: dict[str, Any] = {}
 
         def arg(arg_name: str, default: Any) -> str:
@@ -110,14 +113,18 @@ class TemplateSet:
             template = self._environment.get_template(path.name)  # the loader searches in the same order as find()
             text = template.render({**context, "arg": arg})
         except jinja2.TemplateSyntaxError as error:
-            raise TemplateError(f"template syntax error: {error.message}",
-                                Location(error.filename or path, error.lineno)) from None
+            raise TemplateError(
+                f"template syntax error: {error.message}", Location(error.filename or path, error.lineno)
+            ) from None
         except jinja2.UndefinedError as error:
-            raise TemplateError(f"{error.message} (available: {', '.join(sorted(context) + ['arg'])})",
-                                Location(path, _template_line(error, path))) from None
+            raise TemplateError(
+                f"{error.message} (available: {', '.join([*sorted(context), 'arg'])})",
+                Location(path, _template_line(error, path)),
+            ) from None
         except jinja2.exceptions.SecurityError as error:
-            raise TemplateError(f"template does something unsafe: {error}",
-                                Location(path, _template_line(error, path))) from None
+            raise TemplateError(
+                f"template does something unsafe: {error}", Location(path, _template_line(error, path))
+            ) from None
         except TypeError as error:
             raise TemplateError(str(error), Location(path, _template_line(error, path))) from None
         return RenderedTemplate(text=text, template_file=path, arguments_asked=asked)
@@ -130,4 +137,3 @@ def _template_line(error: BaseException, path: Path) -> int | None:
         if Path(frame.filename).resolve() == path.resolve():
             line = frame.lineno
     return line
-

@@ -58,7 +58,7 @@ def emit(tree: dict[str, Any], indent: int = 0) -> str:
             lines.append(f"{pad}{label}:\n")
             for item in value:
                 item_text = emit(item, indent + 1)
-                lines.append(f"{pad}- {item_text[len(pad) + 2:]}" if item else f"{pad}- {{}}\n")
+                lines.append(f"{pad}- {item_text[len(pad) + 2 :]}" if item else f"{pad}- {{}}\n")
         elif isinstance(value, list):
             lines.append(f"{pad}{label}: [{', '.join(scalar(item) for item in value)}]\n")
         else:

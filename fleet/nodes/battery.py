@@ -25,9 +25,7 @@ class BatteryNode(FleetNode):
         ParamSpec("capacity", 100.0, "Energy of a full battery (Wh); > 0", 0.0, 100000.0),
         ParamSpec("initial_percentage", 1.0, "Charge at start-up (fraction 0..1)", 0.0, 1.0),
         ParamSpec("idle_draw", 5.0, "Power drawn at all times (W)", 0.0, 10000.0),
-        ParamSpec(
-            "motion_draw", 20.0, "Extra power per m/s of odometry speed (W per m/s)", 0.0, 10000.0
-        ),
+        ParamSpec("motion_draw", 20.0, "Extra power per m/s of odometry speed (W per m/s)", 0.0, 10000.0),
         ParamSpec("low_threshold", 0.2, "Charge below which diagnostics warn (fraction)", 0.0, 1.0),
         ParamSpec(
             "critical_threshold",
@@ -36,9 +34,7 @@ class BatteryNode(FleetNode):
             0.0,
             1.0,
         ),
-        ParamSpec(
-            "publish_rate", 1.0, "Rate of the battery topic (Hz of the node clock)", 0.1, 100.0
-        ),
+        ParamSpec("publish_rate", 1.0, "Rate of the battery topic (Hz of the node clock)", 0.1, 100.0),
     )
 
     def __init__(self, **node_kwargs: Any) -> None:
@@ -99,9 +95,7 @@ class BatteryNode(FleetNode):
 
     def health(self) -> str:
         p = self.params
-        return models.battery_health(
-            self.model.fraction, p["low_threshold"], p["critical_threshold"]
-        )
+        return models.battery_health(self.model.fraction, p["low_threshold"], p["critical_threshold"])
 
     def _publish(self) -> None:
         self._integrate()
@@ -115,9 +109,7 @@ class BatteryNode(FleetNode):
         msg.percentage = float(self.model.fraction)
         msg.power_supply_status = BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
         msg.power_supply_health = (
-            BatteryState.POWER_SUPPLY_HEALTH_DEAD
-            if self.health() == "dead"
-            else BatteryState.POWER_SUPPLY_HEALTH_GOOD
+            BatteryState.POWER_SUPPLY_HEALTH_DEAD if self.health() == "dead" else BatteryState.POWER_SUPPLY_HEALTH_GOOD
         )
         msg.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_UNKNOWN
         msg.present = True

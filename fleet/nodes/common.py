@@ -55,17 +55,13 @@ class ParamSpec:
 
     def descriptor(self) -> ParameterDescriptor:
         param_type = Parameter.Type.from_parameter_value(self.default)
-        descriptor = ParameterDescriptor(
-            name=self.name, type=param_type.value, description=self.description
-        )
+        descriptor = ParameterDescriptor(name=self.name, type=param_type.value, description=self.description)
         if self.low is not None and param_type == Parameter.Type.DOUBLE:
             descriptor.floating_point_range = [
                 FloatingPointRange(from_value=float(self.low), to_value=float(self.high), step=0.0)
             ]
         elif self.low is not None and param_type == Parameter.Type.INTEGER:
-            descriptor.integer_range = [
-                IntegerRange(from_value=int(self.low), to_value=int(self.high), step=0)
-            ]
+            descriptor.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=0)]
         return descriptor
 
     def coerce(self, value: Any) -> Any:
@@ -74,11 +70,7 @@ class ParamSpec:
         YAML and command lines write `max_speed: 1` as an integer, and rcl would refuse it for a
         double parameter with a type error people find baffling; the value is unambiguous.
         """
-        if (
-            isinstance(self.default, float)
-            and isinstance(value, int)
-            and not isinstance(value, bool)
-        ):
+        if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
             return float(value)
         if (
             isinstance(self.default, list)
@@ -127,9 +119,7 @@ class FleetNode(Node):
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
         self._logged_state: str | None = None
-        self.get_logger().info(
-            "started: " + ", ".join(f"{k}={format_value(v)}" for k, v in self.params.items())
-        )
+        self.get_logger().info("started: " + ", ".join(f"{k}={format_value(v)}" for k, v in self.params.items()))
 
     # -- parameters -----------------------------------------------------------------------
 
@@ -145,9 +135,7 @@ class FleetNode(Node):
             try:
                 self.declare_parameter(spec.name, spec.default, spec.descriptor())
             except (InvalidParameterTypeException, InvalidParameterValueException):
-                raise ParameterError(
-                    f"{self.get_fully_qualified_name()}: {spec.explain(value)}"
-                ) from None
+                raise ParameterError(f"{self.get_fully_qualified_name()}: {spec.explain(value)}") from None
         values = {spec.name: self.get_parameter(spec.name).value for spec in self.PARAMETERS}
         reason = self.validate(values)
         if reason:
@@ -258,10 +246,7 @@ def run(program: str, init_args: list[str], factories: Iterable[Callable[[], Nod
     # rclpy's handlers instead shut the context down from another thread, which races with a
     # running executor or callback (seen: RCLError "context is not valid" and exit 1 on SIGTERM).
     stop_requested: list[int] = []
-    previous = {
-        sig: signal.signal(sig, lambda signum, _: stop_requested.append(signum))
-        for sig in STOP_SIGNALS
-    }
+    previous = {sig: signal.signal(sig, lambda signum, _: stop_requested.append(signum)) for sig in STOP_SIGNALS}
     try:
         rclpy.init(args=init_args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an unreadable or malformed --params-file

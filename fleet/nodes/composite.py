@@ -9,6 +9,7 @@ robot instead of three saves about two thirds of the memory of a large simulated
 
 from __future__ import annotations
 
+import itertools
 import sys
 from functools import partial
 
@@ -36,9 +37,7 @@ def parse_groups(argv: list[str]) -> list[tuple[str, list[str]]]:
             raise UsageError(f"{GROUP_FLAG} needs an executable name ({', '.join(sorted(NODES))})")
         executable = argv[i + 1]
         if executable not in NODES:
-            raise UsageError(
-                f"unknown node executable {executable!r} (known: {', '.join(sorted(NODES))})"
-            )
+            raise UsageError(f"unknown node executable {executable!r} (known: {', '.join(sorted(NODES))})")
         j = i + 2
         while j < len(argv) and argv[j] != GROUP_FLAG:
             j += 1
@@ -68,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
 def log_levels(ros_args: list[str]) -> list[tuple[str | None, str]]:
     """The `--log-level [LOGGER:=]LEVEL` settings of a group, in order (None: the node's logger)."""
     found = []
-    for flag, value in zip(ros_args, ros_args[1:], strict=False):
+    for flag, value in itertools.pairwise(ros_args):
         if flag == "--log-level":
             logger, _, level = value.rpartition(":=")
             found.append((logger or None, level))

@@ -31,17 +31,13 @@ class ControllerNode(FleetNode):
         ParamSpec("loop", True, "After the last waypoint start again at the first (else stop)"),
         ParamSpec("max_speed", 0.5, "Forward speed limit (m/s)", 0.0, 5.0),
         ParamSpec("max_turn_rate", 1.5, "Turn rate limit (rad/s)", 0.0, 10.0),
-        ParamSpec(
-            "goal_tolerance", 0.15, "Distance at which a waypoint counts as reached (m)", 0.01, 5.0
-        ),
+        ParamSpec("goal_tolerance", 0.15, "Distance at which a waypoint counts as reached (m)", 0.01, 5.0),
         ParamSpec("control_rate", 20.0, "Control loop rate (Hz of the node clock)", 1.0, 200.0),
     )
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__("controller", **node_kwargs)
-        self.follower = models.WaypointFollower(
-            models.pairs(self.params["waypoints"]), loop=self.params["loop"]
-        )
+        self.follower = models.WaypointFollower(models.pairs(self.params["waypoints"]), loop=self.params["loop"])
         self.pose: tuple[float, float, float] | None = None
         self.frame_id = "odom"
         self.battery_dead = False

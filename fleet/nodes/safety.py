@@ -27,12 +27,8 @@ WATCHDOG_PERIOD = 0.05  # s: how late a scan timeout may be noticed
 class SafetyNode(FleetNode):
     PARAMETERS = (
         ParamSpec("safety_distance", 0.4, "Block forward motion closer than this (m)", 0.0, 10.0),
-        ParamSpec(
-            "scan_half_angle", 0.6, "Half width of the forward cone checked (rad)", 0.0, 3.1416
-        ),
-        ParamSpec(
-            "scan_timeout", 1.0, "Zero output when no scan came for this long (s)", 0.05, 60.0
-        ),
+        ParamSpec("scan_half_angle", 0.6, "Half width of the forward cone checked (rad)", 0.0, 3.1416),
+        ParamSpec("scan_timeout", 1.0, "Zero output when no scan came for this long (s)", 0.05, 60.0),
     )
 
     def __init__(self, **node_kwargs: Any) -> None:
@@ -81,9 +77,7 @@ class SafetyNode(FleetNode):
         out.linear.x, out.linear.y, out.linear.z = cmd.linear.x, cmd.linear.y, cmd.linear.z
         out.angular.x, out.angular.y, out.angular.z = cmd.angular.x, cmd.angular.y, cmd.angular.z
         if verdict == "blocked":
-            out.linear.x = models.gate_forward(
-                cmd.linear.x, self.nearest, self.params["safety_distance"]
-            )
+            out.linear.x = models.gate_forward(cmd.linear.x, self.nearest, self.params["safety_distance"])
         return out
 
     def _on_cmd(self, msg: Twist) -> None:
@@ -107,9 +101,8 @@ class SafetyNode(FleetNode):
         if verdict == self.last_verdict:
             return
         self.last_verdict = verdict
-        if verdict != "clear" and self.last_input is not None:
-            if self.gate(self.last_input) != self.last_input:
-                self._send(self.last_input)
+        if verdict != "clear" and self.last_input is not None and self.gate(self.last_input) != self.last_input:
+            self._send(self.last_input)
 
     def diagnose(self) -> tuple[int, str, dict[str, Any]]:
         verdict = self.verdict()

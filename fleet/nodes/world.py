@@ -1,6 +1,6 @@
 """`fleet_nodes/world`: the shared PyBullet world (see fleet.world).
 
-    world --config world.yaml [--status-file F] [--as-fast-as-possible] [--ros-args ...]
+world --config world.yaml [--status-file F] [--as-fast-as-possible] [--ros-args ...]
 """
 
 from __future__ import annotations

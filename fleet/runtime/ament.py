@@ -91,9 +91,7 @@ def ensure_ament_prefix(prefix: Path | None = None) -> Path:
     _write_if_changed(prefix / "share" / PACKAGE / "package.xml", _package_xml(), 0o644)
     interpreter = _interpreter(prefix)
     for executable in EXECUTABLES:
-        _write_if_changed(
-            prefix / "lib" / PACKAGE / executable, _script(interpreter, executable), 0o755
-        )
+        _write_if_changed(prefix / "lib" / PACKAGE / executable, _script(interpreter, executable), 0o755)
     return prefix
 
 

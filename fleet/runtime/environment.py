@@ -31,7 +31,9 @@ def discovery_server_port(domain_id: int, slot: int = 0) -> int:
     return _PORT_BASE + _DOMAIN_GAIN * domain_id + _SERVER_OFFSET + slot % SERVER_SLOTS
 
 
-def ros_environment(domain_id: int, base: dict[str, str] | None = None, discovery_server: str | None = None) -> dict[str, str]:
+def ros_environment(
+    domain_id: int, base: dict[str, str] | None = None, discovery_server: str | None = None
+) -> dict[str, str]:
     """An environment for ROS processes of one domain; `discovery_server` is "address:port"."""
     env = dict(os.environ if base is None else base)
     env["ROS_DOMAIN_ID"] = str(domain_id)

@@ -46,10 +46,7 @@ def single(node: NodeLaunch) -> ProcessSpec:
 def _composable(node: NodeLaunch) -> bool:
     # Plain (non-ROS) arguments would have nowhere to go in the composite's argv.
     return (
-        node.package == PACKAGE
-        and node.executable in COMPOSABLE
-        and len(node.cmd) > 1
-        and node.cmd[1] == "--ros-args"
+        node.package == PACKAGE and node.executable in COMPOSABLE and len(node.cmd) > 1 and node.cmd[1] == "--ros-args"
     )
 
 

@@ -177,9 +177,7 @@ def _parse_subst(text: str, index: int) -> tuple[_Subst, int]:
         args.append(tuple(arg))
     if kind not in _ARITY:
         supported = ", ".join(f"$({name})" for name in _ARITY)
-        raise _SubstitutionSyntax(
-            f"unknown substitution '$({kind})' (the embedded runner supports {supported})"
-        )
+        raise _SubstitutionSyntax(f"unknown substitution '$({kind})' (the embedded runner supports {supported})")
     low, high = _ARITY[kind]
     if not low <= len(args) <= high:
         raise _SubstitutionSyntax(f"'$({kind})' takes {low}..{high} arguments, got {len(args)}")
@@ -266,9 +264,18 @@ class _Node(_Action):
 
 _COMMON_KEYS = {"if", "unless"}
 _NODE_KEYS = {
-    "pkg", "exec", "name", "namespace", "param", "remap", "args", "ros_args",
-    "respawn", "respawn_delay", "output",
-}  # fmt: skip
+    "pkg",
+    "exec",
+    "name",
+    "namespace",
+    "param",
+    "remap",
+    "args",
+    "ros_args",
+    "respawn",
+    "respawn_delay",
+    "output",
+}
 _ACTION_KEYS = {
     "arg": {"name", "default", "description"},
     "let": {"name", "value"},
@@ -318,9 +325,7 @@ class _Reader:
     def action(self, kind: Any, body: Any, line: int) -> _Action:
         if kind not in _ACTION_KEYS:
             supported = ", ".join(sorted(_ACTION_KEYS))
-            raise self.error(
-                f"unknown action '{kind}' (the embedded runner supports {supported})", line
-            )
+            raise self.error(f"unknown action '{kind}' (the embedded runner supports {supported})", line)
         if kind == "group" and isinstance(body, list):
             body = _Map(children=body)
             body.line, body.key_lines = line, {"children": line}
@@ -338,8 +343,7 @@ class _Reader:
         condition = self.condition(kind, body)
         attrs = _Attributes(self, kind, body)
         if kind == "arg":
-            return _Arg(line, condition, attrs.string("name", substitutions=False),
-                        attrs.optional("default"))  # fmt: skip
+            return _Arg(line, condition, attrs.string("name", substitutions=False), attrs.optional("default"))
         if kind == "let":
             return _Let(line, condition, attrs.parts("name"), attrs.parts("value"))
         if kind == "set_env":
@@ -363,7 +367,7 @@ class _Reader:
                 return _Condition(keyword, attrs.parts(keyword))
         return None
 
-    def node(self, line: int, condition: _Condition | None, attrs: "_Attributes", body) -> _Node:
+    def node(self, line: int, condition: _Condition | None, attrs: _Attributes, body) -> _Node:
         delay = body.get("respawn_delay", 0.0)
         if "respawn_delay" in body and (not isinstance(delay, float) or delay < 0.0):
             raise self.error(
@@ -420,8 +424,7 @@ class _Reader:
             if all(isinstance(element, (bool, int, float, str)) for element in value):
                 return [self.param_value(element, line) for element in value]
         raise self.error(
-            "a parameter value must be a bool, int, float, string or a non-empty list of those "
-            f"(got {value!r})",
+            f"a parameter value must be a bool, int, float, string or a non-empty list of those (got {value!r})",
             line,
         )
 
@@ -430,8 +433,7 @@ class _Reader:
         for item in self._items(body, "remap"):
             if set(item) != {"from", "to"}:
                 raise self.error(
-                    f"a node 'remap' item is {{from: NAME, to: NAME}}; got keys "
-                    f"{sorted(item, key=str)}",
+                    f"a node 'remap' item is {{from: NAME, to: NAME}}; got keys {sorted(item, key=str)}",
                     item.line,
                 )
             attrs = _Attributes(self, "remap", item)
@@ -491,7 +493,7 @@ class _Scope:
     env: dict[str, str]  # set_env variables
     namespace: str | None
 
-    def copy(self) -> "_Scope":
+    def copy(self) -> _Scope:
         return _Scope(dict(self.configurations), dict(self.env), self.namespace)
 
 
@@ -540,8 +542,7 @@ def _valid_namespace(namespace: str) -> bool:
 class _Interpreter:
     """Pass 2: run the actions like launch does and draft the nodes."""
 
-    def __init__(self, path: Path, launch_args: Mapping[str, str], env: Mapping[str, str],
-                 search_path: str):  # fmt: skip
+    def __init__(self, path: Path, launch_args: Mapping[str, str], env: Mapping[str, str], search_path: str):
         self.path = path
         self.base_env = env
         self.search_path = search_path
@@ -615,8 +616,7 @@ class _Interpreter:
             if action.name not in scope.configurations:
                 if action.default is None:
                     raise self.error(
-                        f"launch argument '{action.name}' is required (no default); "
-                        f"give it as {action.name}:=VALUE",
+                        f"launch argument '{action.name}' is required (no default); give it as {action.name}:=VALUE",
                         line,
                     )
                 scope.configurations[action.name] = self.resolve(action.default, scope, line)
@@ -625,9 +625,7 @@ class _Interpreter:
             name = self.resolve(action.name, scope, line)
             scope.configurations[name] = self.resolve(action.value, scope, line)
         elif isinstance(action, _SetEnv):
-            scope.env[self.resolve(action.name, scope, line)] = self.resolve(
-                action.value, scope, line
-            )
+            scope.env[self.resolve(action.name, scope, line)] = self.resolve(action.value, scope, line)
         elif isinstance(action, _PushNamespace):
             pushed = self.resolve(action.namespace, scope, line)
             namespace = _absolute(_prefix_namespace(scope.namespace, pushed))
@@ -653,8 +651,7 @@ class _Interpreter:
         name = None if node.name is None else self.resolve(node.name, scope, line)
         if name is not None and not _NAME_TOKEN.fullmatch(name):
             raise self.error(
-                f"invalid node name '{name}' (letters, digits and underscores, not starting "
-                "with a digit)",
+                f"invalid node name '{name}' (letters, digits and underscores, not starting with a digit)",
                 line,
             )
         own_namespace = None if node.namespace is None else self.resolve(node.namespace, scope, line)
@@ -692,8 +689,7 @@ class _Interpreter:
                 value = self.param_value(param_name, param.value, scope, param.line)
                 params.append(("inline", key, {param_name: value}))
         remaps = [
-            (self.resolve(source, scope, line), self.resolve(target, scope, line))
-            for source, target in node.remaps
+            (self.resolve(source, scope, line), self.resolve(target, scope, line)) for source, target in node.remaps
         ]
         return _NodeDraft(
             launch=launch,
@@ -702,7 +698,7 @@ class _Interpreter:
             ros_arguments=None if node.ros_args is None else self.command_line(node.ros_args, scope, line),
             params=params,
             remaps=remaps,
-        )  # fmt: skip
+        )
 
     def param_value(self, name: str, value: Any, scope: _Scope, line: int | None) -> Any:
         """Type a parameter value like launch_ros: substituted strings are read as YAML."""
@@ -773,9 +769,7 @@ class _Interpreter:
 
 
 def _write_inline_params(key: str, params: dict, directory: str | None) -> str:
-    with tempfile.NamedTemporaryFile(
-        "w", prefix="launch_params_", dir=directory, delete=False
-    ) as handle:
+    with tempfile.NamedTemporaryFile("w", prefix="launch_params_", dir=directory, delete=False) as handle:
         yaml.safe_dump({key: {"ros__parameters": params}}, handle, default_flow_style=False)
         return handle.name
 
@@ -872,4 +866,3 @@ def _parse(
     interpreter = _Interpreter(path, launch_args, env, search_path)
     drafts = interpreter.run(actions)
     return drafts, interpreter.arguments
-

@@ -75,8 +75,9 @@ class ProcessOutput:
 
     def follow(self, stream: IO[bytes]) -> threading.Thread:
         """Read `stream` line by line on a daemon thread until it closes."""
-        thread = threading.Thread(target=self._pump, args=(stream,), daemon=True,
-                                  name=f"fleet-log-{self.log.path.stem}")  # fmt: skip
+        thread = threading.Thread(
+            target=self._pump, args=(stream,), daemon=True, name=f"fleet-log-{self.log.path.stem}"
+        )
         thread.start()
         return thread
 

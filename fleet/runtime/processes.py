@@ -35,7 +35,9 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
-def spawn(cmd: Sequence[str], env: Mapping[str, str], cwd: str | None = None, output: IO | None = None) -> subprocess.Popen:
+def spawn(
+    cmd: Sequence[str], env: Mapping[str, str], cwd: str | None = None, output: IO | None = None
+) -> subprocess.Popen:
     """Start `cmd` in a new session, stdout and stderr merged into one pipe (or into `output`,
     an open file), stdin closed."""
     return subprocess.Popen(

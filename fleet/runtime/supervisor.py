@@ -222,7 +222,7 @@ class LaunchSession:
                 process.pump.join(timeout=1.0)  # the last lines a node printed
             process.output.close()
 
-    def __enter__(self) -> "LaunchSession":
+    def __enter__(self) -> LaunchSession:
         self.start()
         return self
 
@@ -280,9 +280,7 @@ class LaunchSession:
 
     def _ros2_spec(self, ros2: str) -> ProcessSpec:
         arguments = [f"{name}:={value}" for name, value in self.launch_args.items()]
-        return ProcessSpec(
-            name="ros2-launch-1", cmd=[ros2, "launch", str(self.path), *arguments], echo=True
-        )
+        return ProcessSpec(name="ros2-launch-1", cmd=[ros2, "launch", str(self.path), *arguments], echo=True)
 
     def _echo_for(self, process_name: str) -> Callable[[str], None]:
         on_line = self.on_line
@@ -379,9 +377,7 @@ class LaunchSession:
             ran_for = now - process.started_at
             process.failures_in_row = 1 if ran_for >= STABLE_AFTER else process.failures_in_row + 1
             process.state = BACKOFF
-            process.restart_at = now + backoff_delay(
-                process.spec.respawn_delay, process.failures_in_row
-            )
+            process.restart_at = now + backoff_delay(process.spec.respawn_delay, process.failures_in_row)
         elif process.state == RUNNING and self._stop_requested:
             process.state = STOPPING
         elif process.state == BACKOFF:

@@ -71,21 +71,23 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
     for index, robot in enumerate(spec.robots):
         here = ("robots", index)
         if problem := ros_name_problem(robot.name):
-            fail(f"robot name {problem}", here + ("name",))
+            fail(f"robot name {problem}", (*here, "name"))
         if robot.name in seen:
-            fail(f"duplicate robot name {robot.name!r} (first defined as robots[{seen[robot.name]}])", here + ("name",))
+            fail(f"duplicate robot name {robot.name!r} (first defined as robots[{seen[robot.name]}])", (*here, "name"))
         seen[robot.name] = index
         namespace = robot.namespace or f"/{robot.name}"
         if robot.namespace is not None and (problem := namespace_problem(robot.namespace)):
-            fail(f"robot {robot.name!r}: {problem}", here + ("namespace",))
+            fail(f"robot {robot.name!r}: {problem}", (*here, "namespace"))
         if namespace in namespaces:
-            fail(f"robot {robot.name!r} uses namespace {namespace} already used by robots[{namespaces[namespace]}]",
-                 here + ("namespace",) if robot.namespace else here + ("name",))
+            fail(
+                f"robot {robot.name!r} uses namespace {namespace} already used by robots[{namespaces[namespace]}]",
+                (*here, "namespace") if robot.namespace else (*here, "name"),
+            )
         namespaces[namespace] = index
         if robot.agent is not None:
-            check_agent(robot.agent, here + ("agent",))
-        check_parameters(robot.parameters, here + ("parameters",), source)
-        check_launch_args(robot.launch_args, here + ("launch_args",), source)
+            check_agent(robot.agent, (*here, "agent"))
+        check_parameters(robot.parameters, (*here, "parameters"), source)
+        check_launch_args(robot.launch_args, (*here, "launch_args"), source)
     if spec.world is not None:
         names: set[str] = set()
         for index, obstacle in enumerate(spec.world.obstacles):
@@ -99,24 +101,27 @@ def check_launch_args(arguments: dict[str, Any], path: tuple, source: SourceMap)
     (`$(command ...)` even runs a shell): such values are refused, never emitted."""
     for name, value in arguments.items():
         if problem := ros_name_problem(name):
-            raise SpecError(f"launch argument name {problem}", source.locate(path + (name,), key=True))
+            raise SpecError(f"launch argument name {problem}", source.locate((*path, name), key=True))
         if isinstance(value, str) and "$(" in value:
-            raise SpecError(f"launch argument {name}: '$(' would be evaluated as a launch substitution; "
-                            "values must be plain text", source.locate(path + (name,)))
+            raise SpecError(
+                f"launch argument {name}: '$(' would be evaluated as a launch substitution; values must be plain text",
+                source.locate((*path, name)),
+            )
 
 
 def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source: SourceMap) -> None:
     """Node names are ROS names; every (nested) parameter value is one ROS can hold."""
     for node, values in parameters.items():
         if problem := ros_name_problem(node):
-            raise SpecError(f"node name {problem}", source.locate(path + (node,), key=True))
+            raise SpecError(f"node name {problem}", source.locate((*path, node), key=True))
         for name, (key_path, value) in flatten(values).items():
             for token in name.split("."):
                 if problem := ros_name_problem(token):
-                    raise SpecError(f"parameter name {node}.{name}: {problem}",
-                                    source.locate(path + (node,) + key_path, key=True))
+                    raise SpecError(
+                        f"parameter name {node}.{name}: {problem}", source.locate((*path, node, *key_path), key=True)
+                    )
             if problem := value_problem(value):
-                raise SpecError(f"parameter {node}.{name}: {problem}", source.locate(path + (node,) + key_path))
+                raise SpecError(f"parameter {node}.{name}: {problem}", source.locate((*path, node, *key_path)))
 
 
 def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
@@ -135,8 +140,9 @@ def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
         message += f" (did you mean {hint[0]!r}?)" if hint else f" (allowed: {', '.join(allowed)})"
         return SpecError(message, source.locate(loc, key=True))
     if kind == "missing":
-        return SpecError(f"missing required key {loc[-1]!r}" + (f" in {_parent(loc)}" if loc[:-1] else ""),
-                         source.locate(loc[:-1]))
+        return SpecError(
+            f"missing required key {loc[-1]!r}" + (f" in {_parent(loc)}" if loc[:-1] else ""), source.locate(loc[:-1])
+        )
     if kind == "too_short" and loc == ("robots",):
         return SpecError("robots: a fleet needs at least one robot", source.locate(loc))
     message = problem["msg"]

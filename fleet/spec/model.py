@@ -6,6 +6,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
+
 def _ints_to_floats(data: Any, keep: set[str] = frozenset()) -> Any:
     """Strict mode refuses `x: 1` for a float; people write that, so promote ints (not bools)."""
     if not isinstance(data, dict):
@@ -86,7 +87,7 @@ class Obstacle(Measured):
     height: float = Field(1.0, gt=0)  # cylinder
 
     @model_validator(mode="after")
-    def _shape_complete(self) -> "Obstacle":
+    def _shape_complete(self) -> Obstacle:
         if self.type in ("box", "wall"):
             if self.size is None:
                 raise ValueError(f"a {self.type} needs size: [x, y, z]")

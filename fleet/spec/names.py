@@ -45,5 +45,7 @@ def key_name_problem(name: object) -> str | None:
     if not isinstance(name, str):
         return f"must be a string, not {type(name).__name__}"
     if not _KEY_CHUNK.fullmatch(name) or len(name) > MAX_NAME_LENGTH:
-        return f"{name!r} is not a valid name: use letters, digits, '_', '-', '.' (not first), at most {MAX_NAME_LENGTH}"
+        return (
+            f"{name!r} is not a valid name: use letters, digits, '_', '-', '.' (not first), at most {MAX_NAME_LENGTH}"
+        )
     return None

@@ -61,7 +61,7 @@ def flatten(parameters: dict, prefix: str = "") -> dict[str, tuple[tuple, Any]]:
         name = f"{prefix}{key}"
         if isinstance(value, dict):
             for sub_name, (sub_path, sub_value) in flatten(value, name + ".").items():
-                flat[sub_name] = ((key,) + sub_path, sub_value)
+                flat[sub_name] = ((key, *sub_path), sub_value)
         else:
             flat[name] = ((key,), value)
     return flat

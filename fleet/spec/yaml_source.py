@@ -77,7 +77,7 @@ class _Builder:
         return _construct(node, path, self.source, self)
 
 
-def _construct(node: yaml.Node, path: tuple, source: SourceMap, builder: "_Builder") -> Any:
+def _construct(node: yaml.Node, path: tuple, source: SourceMap, builder: _Builder) -> Any:
     source.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
     if isinstance(node, yaml.MappingNode):
         result: dict[Any, Any] = {}
@@ -89,15 +89,15 @@ def _construct(node: yaml.Node, path: tuple, source: SourceMap, builder: "_Build
                 raise SpecError("mapping keys must be plain scalars", _mark(source, key_node))
             if key in result:
                 raise SpecError(f"duplicate key {key!r}", _mark(source, key_node))
-            source.key_positions[path + (key,)] = (key_node.start_mark.line + 1, key_node.start_mark.column + 1)
-            result[key] = _construct(value_node, path + (key,), source, builder)
+            source.key_positions[(*path, key)] = (key_node.start_mark.line + 1, key_node.start_mark.column + 1)
+            result[key] = _construct(value_node, (*path, key), source, builder)
         return result
     if isinstance(node, yaml.SequenceNode):
-        return [_construct(item, path + (index,), source, builder) for index, item in enumerate(node.value)]
+        return [_construct(item, (*path, index), source, builder) for index, item in enumerate(node.value)]
     return _scalar(node, source, builder)
 
 
-def _scalar(node: yaml.Node, source: SourceMap, builder: "_Builder") -> Any:
+def _scalar(node: yaml.Node, source: SourceMap, builder: _Builder) -> Any:
     if not isinstance(node, yaml.ScalarNode):
         raise SpecError("expected a plain value here", _mark(source, node))
     try:

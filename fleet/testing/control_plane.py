@@ -41,8 +41,14 @@ class ControlPlane:
             raise RuntimeError(f"{key} is already running (pid {self.pid(key)})")
         self.root.mkdir(parents=True, exist_ok=True)
         with open(self.log_path(key), "ab") as log:
-            process = subprocess.Popen([sys.executable, "-m", "fleet", *args], env=self.env, cwd=self.root,
-                                       stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+            process = subprocess.Popen(
+                [sys.executable, "-m", "fleet", *args],
+                env=self.env,
+                cwd=self.root,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+            )
         self.processes[key] = process
         return process
 
@@ -64,8 +70,19 @@ class ControlPlane:
         raise RuntimeError(f"the fleet router did not start on {self.endpoint}:\n{self.log_tail(ROUTER)}")
 
     def start_agent(self, name: str, zenoh_config: Path | None = None) -> None:
-        self._spawn(agent_key(name), ["agent", "--name", name, "--connect", self.endpoint,
-                                      "--state-dir", str(self.agent_dir(name))] + _config_args(zenoh_config))
+        self._spawn(
+            agent_key(name),
+            [
+                "agent",
+                "--name",
+                name,
+                "--connect",
+                self.endpoint,
+                "--state-dir",
+                str(self.agent_dir(name)),
+                *_config_args(zenoh_config),
+            ],
+        )
 
     def kill(self, key: str, signum: int = signal.SIGKILL) -> int:
         """Signal a router or agent process and wait for it to end; returns its pid."""
@@ -110,7 +127,7 @@ class ControlPlane:
         return {key: process.pid for key, process in self.processes.items() if process.poll() is None}
 
     def running_agents(self) -> set[str]:
-        return {key[len(AGENT_PREFIX):] for key in self.running() if key.startswith(AGENT_PREFIX)}
+        return {key[len(AGENT_PREFIX) :] for key in self.running() if key.startswith(AGENT_PREFIX)}
 
     # -- files ----------------------------------------------------------------------------------
 

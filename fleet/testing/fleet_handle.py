@@ -23,10 +23,11 @@ import tempfile
 import time
 import uuid
 import weakref
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from fleet.testing.control_plane import ROUTER, ControlPlane, agent_key, child_environment
 from fleet.testing.isolation import reserve_domain_id, with_domain_id
@@ -39,7 +40,7 @@ WALL_SLACK = 20.0
 
 # Handles not closed yet: the pytest plugin attaches their status, logs and a snapshot to a
 # failing test's report.
-OPEN_HANDLES: "weakref.WeakSet[FleetHandle]" = weakref.WeakSet()
+OPEN_HANDLES: weakref.WeakSet[FleetHandle] = weakref.WeakSet()
 
 
 class FleetTimeout(AssertionError):
@@ -58,7 +59,7 @@ class Pose:
     y: float
     yaw: float
 
-    def distance_to(self, other: "Pose | tuple[float, float]") -> float:
+    def distance_to(self, other: Pose | tuple[float, float]) -> float:
         ox, oy = (other.x, other.y) if isinstance(other, Pose) else other
         return math.hypot(self.x - ox, self.y - oy)
 
@@ -97,15 +98,16 @@ class FleetHandle:
     def endpoint(self) -> str:
         return self.control.endpoint
 
-    def start(self, timeout: float = 120.0) -> "FleetHandle":
+    def start(self, timeout: float = 120.0) -> FleetHandle:
         OPEN_HANDLES.add(self)
         self.control.start_router()
         for agent in self.agents():
             self.start_agent(agent)
         outcome = self.deploy(timeout=timeout, check=False)
         if not outcome.ok:
-            raise AssertionError(f"fleet {self.name} did not come up: {_outcome_problem(outcome)}\n"
-                                 + self.report_text())
+            raise AssertionError(
+                f"fleet {self.name} did not come up: {_outcome_problem(outcome)}\n" + self.report_text()
+            )
         self.wait_desired_state(timeout=timeout)
         return self
 
@@ -129,8 +131,10 @@ class FleetHandle:
                 described += [f"still alive after SIGKILL: {_describe(p)}" for p in processes_marked(self.marker)]
             self._reservation.release()
         if described and check_leaks:
-            raise FleetLeak(f"fleet {self.name}: {len(described)} process(es) outlived the clean stop and were killed:\n"
-                            + "\n".join(described))
+            raise FleetLeak(
+                f"fleet {self.name}: {len(described)} process(es) outlived the clean stop and were killed:\n"
+                + "\n".join(described)
+            )
 
     def agents(self) -> list[str]:
         """The agents the current spec places robots (or the world) on."""
@@ -146,8 +150,13 @@ class FleetHandle:
         isolated = with_domain_id(loaded, self.domain_id)
         return isolated, expand_fleet(isolated, list(sets))
 
-    def deploy(self, spec: str | Path | Any | None = None, sets: list[str] | tuple[str, ...] | None = None,
-               timeout: float = 90.0, check: bool = True):
+    def deploy(
+        self,
+        spec: str | Path | Any | None = None,
+        sets: list[str] | tuple[str, ...] | None = None,
+        timeout: float = 90.0,
+        check: bool = True,
+    ):
         """Deploy (again): a changed spec and/or other `--set` overrides (default: the current
         ones).  Agents the spec newly uses are started first (not those a test stopped: a deploy
         meets them down, as it would in the field).  Returns fleet.control.deploy's
@@ -168,17 +177,24 @@ class FleetHandle:
         if outcome.discovery is not None and outcome.discovery.server:
             self.discovery_server = outcome.discovery.server
         if check and not outcome.ok:
-            raise AssertionError(f"deploy of fleet {self.name} failed: {_outcome_problem(outcome)}\n" + self.report_text())
+            raise AssertionError(
+                f"deploy of fleet {self.name} failed: {_outcome_problem(outcome)}\n" + self.report_text()
+            )
         return outcome
 
     def _wait_agents_online(self, names: set[str], timeout: float = 30.0) -> None:
         """Agents just started take a moment to connect; a deploy must not find them unreachable.
         (Agents a test killed are not running, so a deploy meets them down, as it should.)"""
+
         def online() -> set[str]:
             return {row.name for row in self.status().agents if row.online}
 
-        self.wait_for(lambda: names <= online(), timeout=timeout, what=f"agents {', '.join(sorted(names))} online",
-                      explain=lambda: "\n".join(self.control.log_tail(agent_key(n), 10) for n in sorted(names)))
+        self.wait_for(
+            lambda: names <= online(),
+            timeout=timeout,
+            what=f"agents {', '.join(sorted(names))} online",
+            explain=lambda: "\n".join(self.control.log_tail(agent_key(n), 10) for n in sorted(names)),
+        )
 
     # -- status ---------------------------------------------------------------------------------
 
@@ -241,9 +257,12 @@ class FleetHandle:
     def wait_desired_state(self, timeout: float = 60.0):
         """Wait (wall time) until desired_state_problems() is empty; returns the status view."""
         __tracebackhide__ = True
-        self.wait_for(lambda: not self.desired_state_problems(), timeout=timeout,
-                      what=f"fleet {self.name} to reach its desired state",
-                      explain=lambda: "; ".join(self.desired_state_problems()))
+        self.wait_for(
+            lambda: not self.desired_state_problems(),
+            timeout=timeout,
+            what=f"fleet {self.name} to reach its desired state",
+            explain=lambda: "; ".join(self.desired_state_problems()),
+        )
         return self.status()
 
     # -- the world ------------------------------------------------------------------------------
@@ -312,8 +331,9 @@ class FleetHandle:
             from fleet.testing.ros import RosProbe
 
             # A discovery client of the fleet's server, like the fleet's own nodes.
-            self._probe = RosProbe(f"fleet_test_{uuid.uuid4().hex[:8]}", domain_id=self.domain_id,
-                                   discovery_server=self.discovery_server)  # fmt: skip
+            self._probe = RosProbe(
+                f"fleet_test_{uuid.uuid4().hex[:8]}", domain_id=self.domain_id, discovery_server=self.discovery_server
+            )
         return self._probe
 
     def namespace(self, robot: str) -> str:
@@ -365,8 +385,15 @@ class FleetHandle:
         else:
             time.sleep(seconds)
 
-    def wait_for(self, condition: Callable[[], Any], sim_timeout: float | None = None, timeout: float | None = None,
-                 what: str | None = None, interval: float = 0.1, explain: Callable[[], str] | None = None) -> Any:
+    def wait_for(
+        self,
+        condition: Callable[[], Any],
+        sim_timeout: float | None = None,
+        timeout: float | None = None,
+        what: str | None = None,
+        interval: float = 0.1,
+        explain: Callable[[], str] | None = None,
+    ) -> Any:
         """Poll condition() until it returns something truthy, and return that.
 
         sim_timeout: seconds of *simulated* time (the world's clock) it may take; timeout:
@@ -393,9 +420,12 @@ class FleetHandle:
             sim = clock.elapsed()
             wall = time.monotonic() - started
             if (sim_timeout is not None and sim >= sim_timeout) or wall >= timeout:
-                message = (f"fleet {self.name}: timed out waiting for {what}: "
-                           f"{sim:.1f} s of sim time" + (f" (limit {sim_timeout:g})" if sim_timeout is not None else "")
-                           + f" and {wall:.1f} s of wall time (limit {timeout:g}) passed; last result: {result!r}")
+                message = (
+                    f"fleet {self.name}: timed out waiting for {what}: "
+                    f"{sim:.1f} s of sim time"
+                    + (f" (limit {sim_timeout:g})" if sim_timeout is not None else "")
+                    + f" and {wall:.1f} s of wall time (limit {timeout:g}) passed; last result: {result!r}"
+                )
                 if error is not None:
                     message += f"; last error: {type(error).__name__}: {error}"
                 if explain is not None:
@@ -407,8 +437,11 @@ class FleetHandle:
         """Let `seconds` of sim time pass (subscriptions keep receiving)."""
         __tracebackhide__ = True
         clock = _SimClock(self)
-        self.wait_for(lambda: clock.elapsed() >= seconds, timeout=WALL_PER_SIM * seconds + WALL_SLACK,
-                      what=f"{seconds:g} s of sim time to pass")
+        self.wait_for(
+            lambda: clock.elapsed() >= seconds,
+            timeout=WALL_PER_SIM * seconds + WALL_SLACK,
+            what=f"{seconds:g} s of sim time to pass",
+        )
 
     # -- faults ---------------------------------------------------------------------------------
 
@@ -482,8 +515,12 @@ class FleetHandle:
     def assert_no_leaks(self, timeout: float = 10.0) -> None:
         """Every process of the fleet is accounted for (processes just signalled may take a moment)."""
         __tracebackhide__ = True
-        self.wait_for(lambda: not self.leftover_processes(), timeout=timeout, what=f"fleet {self.name} to leak nothing",
-                      explain=lambda: "unaccounted for: " + "; ".join(self.leftover_processes()))
+        self.wait_for(
+            lambda: not self.leftover_processes(),
+            timeout=timeout,
+            what=f"fleet {self.name} to leak nothing",
+            explain=lambda: "unaccounted for: " + "; ".join(self.leftover_processes()),
+        )
 
     # -- diagnostics ----------------------------------------------------------------------------
 
@@ -526,7 +563,9 @@ def _outcome_problem(outcome) -> str:
     if outcome.timed_out:
         parts.append("timed out waiting for every robot to run")
     if outcome.view is not None:
-        parts += [f"{row.name}: {row.state} {row.error}".rstrip() for row in outcome.view.robots if row.state != "running"]
+        parts += [
+            f"{row.name}: {row.state} {row.error}".rstrip() for row in outcome.view.robots if row.state != "running"
+        ]
     return "; ".join(parts) or "not every robot runs"
 
 
@@ -567,8 +606,13 @@ class _SimClock:
 
 
 @contextmanager
-def running_fleet(spec: str | Path | Any, sets: list[str] | tuple[str, ...] = (), directory: str | Path | None = None,
-                  timeout: float = 120.0, check_leaks: bool = True) -> Iterator[FleetHandle]:
+def running_fleet(
+    spec: str | Path | Any,
+    sets: list[str] | tuple[str, ...] = (),
+    directory: str | Path | None = None,
+    timeout: float = 120.0,
+    check_leaks: bool = True,
+) -> Iterator[FleetHandle]:
     """Bring a fleet up from a spec (a YAML path or a FleetSpec), isolated from everything else
     on this machine; yield its FleetHandle; tear it all down afterwards, also on failure.  When
     the body raises, the fleet's status, node logs and a world snapshot are printed to stderr."""

@@ -35,7 +35,7 @@ class DomainReservation:
             self._lock_file.close()
             self._lock_file = None
 
-    def __enter__(self) -> "DomainReservation":
+    def __enter__(self) -> DomainReservation:
         return self
 
     def __exit__(self, *exc) -> None:

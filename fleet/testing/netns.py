@@ -89,7 +89,7 @@ class Lan:
             _ip("netns", "del", host.netns, check=False)  # also removes its veth pairs
         self.hosts.clear()
 
-    def __enter__(self) -> "Lan":
+    def __enter__(self) -> Lan:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -6,6 +6,7 @@ still carries the marker is killed, daemons that left our process tree included.
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import psutil
@@ -31,14 +32,10 @@ def processes_marked(value: str, variable: str = MARKER_VARIABLE) -> list[psutil
 def terminate(processes: list[psutil.Process], timeout: float = 5.0) -> None:
     """SIGTERM, wait, then SIGKILL whatever is left."""
     for proc in processes:
-        try:
+        with contextlib.suppress(psutil.NoSuchProcess):
             proc.terminate()
-        except psutil.NoSuchProcess:
-            pass
     _, alive = psutil.wait_procs(processes, timeout=timeout)
     for proc in alive:
-        try:
+        with contextlib.suppress(psutil.NoSuchProcess):
             proc.kill()
-        except psutil.NoSuchProcess:
-            pass
     psutil.wait_procs(alive, timeout=timeout)

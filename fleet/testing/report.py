@@ -38,16 +38,22 @@ def status_table(fleet) -> str:
     lines = [f"domain {fleet.domain_id}, router {fleet.endpoint}, last deploy generation {fleet.generation}"]
     for agent in view.agents:
         lines.append(f"agent {agent.name}: {'online' if agent.online else 'OFFLINE'}")
-    lines.append(f"{'robot':<12} {'agent':<10} {'state':<10} {'nodes':>5} {'restarts':>8}  {'pose (x, y, yaw)':<22} battery")
+    lines.append(
+        f"{'robot':<12} {'agent':<10} {'state':<10} {'nodes':>5} {'restarts':>8}  {'pose (x, y, yaw)':<22} battery"
+    )
     for row in view.robots:
         pose = f"{row.pose['x']:.2f}, {row.pose['y']:.2f}, {row.pose['yaw']:.2f}" if row.pose else ""
         battery = f"{row.battery * 100:.0f}%" if row.battery is not None else ""
-        lines.append(f"{row.name:<12} {row.agent:<10} {row.state:<10} {row.running:>2}/{row.total:<2} {row.restarts:>8}  "
-                     f"{pose:<22} {battery}")
+        lines.append(
+            f"{row.name:<12} {row.agent:<10} {row.state:<10} {row.running:>2}/{row.total:<2} {row.restarts:>8}  "
+            f"{pose:<22} {battery}"
+        )
         for node in row.nodes:
             exit_code = f" exit {node.get('exit_code')}" if node.get("exit_code") is not None else ""
-            lines.append(f"    {node.get('name')}: {node.get('state')} pid {node.get('pid')} "
-                         f"restarts {node.get('restarts')}{exit_code}")
+            lines.append(
+                f"    {node.get('name')}: {node.get('state')} pid {node.get('pid')} "
+                f"restarts {node.get('restarts')}{exit_code}"
+            )
         if row.error:
             lines.append(f"    error: {row.error}")
     problems = fleet.desired_state_problems()
@@ -81,8 +87,10 @@ def world_text(fleet, snapshot_path: str | Path | None) -> str:
     lines = [f"sim time {world.get('sim_time')} s, real-time factor {world.get('real_time_factor')}"]
     for name, robot in sorted(world.get("robots", {}).items()):
         pose, velocity = robot.get("pose", {}), robot.get("velocity", {})
-        lines.append(f"{name}: x {pose.get('x')} y {pose.get('y')} yaw {pose.get('yaw')}, "
-                     f"speed {velocity.get('linear')}, battery {robot.get('battery')}")
+        lines.append(
+            f"{name}: x {pose.get('x')} y {pose.get('y')} yaw {pose.get('yaw')}, "
+            f"speed {velocity.get('linear')}, battery {robot.get('battery')}"
+        )
     contacts = world.get("contacts", {})
     lines.append(f"contacts: {contacts.get('count', 0)}; last: {contacts.get('last', [])[-5:]}")
     if world.get("errors"):

@@ -13,7 +13,8 @@ import contextlib
 import os
 import time
 from collections import deque
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 
 class Subscription:
@@ -41,8 +42,13 @@ def _discovery_environment(discovery_server: str | None):
         # A plain client learns only of the endpoints matching its own; a probe looks at the
         # whole graph (topic lists, publisher counts), as `ros2 topic list` does: a super client.
         wanted["ROS_SUPER_CLIENT"] = "TRUE"
-    keys = ("ROS_DISCOVERY_SERVER", "ROS_SUPER_CLIENT", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
-            "FASTDDS_BUILTIN_TRANSPORTS")
+    keys = (
+        "ROS_DISCOVERY_SERVER",
+        "ROS_SUPER_CLIENT",
+        "ROS_AUTOMATIC_DISCOVERY_RANGE",
+        "ROS_STATIC_PEERS",
+        "FASTDDS_BUILTIN_TRANSPORTS",
+    )
     saved = {key: os.environ.get(key) for key in keys}
     try:
         for key in keys:
@@ -60,8 +66,9 @@ def _discovery_environment(discovery_server: str | None):
 
 
 class RosProbe:
-    def __init__(self, name: str = "fleet_test_probe", domain_id: int | None = None,
-                 discovery_server: str | None = None):
+    def __init__(
+        self, name: str = "fleet_test_probe", domain_id: int | None = None, discovery_server: str | None = None
+    ):
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -72,8 +79,9 @@ class RosProbe:
         # rmw reads discovery settings from the environment when it creates the participant:
         # set them for that moment only (other probes of this process may use other fleets).
         with _discovery_environment(discovery_server):
-            rclpy.init(args=[], context=self.context, domain_id=domain_id,
-                       signal_handler_options=SignalHandlerOptions.NO)
+            rclpy.init(
+                args=[], context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO
+            )
             self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -84,7 +92,7 @@ class RosProbe:
         self.node.destroy_node()
         self.context.try_shutdown()
 
-    def __enter__(self) -> "RosProbe":
+    def __enter__(self) -> RosProbe:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -114,8 +122,9 @@ class RosProbe:
         return {f"{ns.rstrip('/')}/{name}" for name, ns in self.node.get_node_names_and_namespaces()}
 
     def wait_for_nodes(self, names: set[str], timeout: float = 30.0) -> None:
-        self.wait_until(lambda: names <= self.node_names(), timeout,
-                        f"nodes {sorted(names)} (seen: {sorted(self.node_names())})")
+        self.wait_until(
+            lambda: names <= self.node_names(), timeout, f"nodes {sorted(names)} (seen: {sorted(self.node_names())})"
+        )
 
     def topics(self) -> dict[str, list[str]]:
         return dict(self.node.get_topic_names_and_types())

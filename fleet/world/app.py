@@ -23,8 +23,16 @@ from fleet.world import lidar
 from fleet.world.description import ObstacleSpec, Pose2D, RobotSpec, WorldError, WorldSpec, load_world
 from fleet.world.geometry import obstacle_shape, robot_shape
 from fleet.world.physics import PhysicsWorld, SpawnError
-from fleet.world.status import (CONTACTS_KEPT, SCAN_HITS_MAX, Trail, last_poses, model_dict, obstacle_dict,
-                                read_status, write_status)
+from fleet.world.status import (
+    CONTACTS_KEPT,
+    SCAN_HITS_MAX,
+    Trail,
+    last_poses,
+    model_dict,
+    obstacle_dict,
+    read_status,
+    write_status,
+)
 
 log = logging.getLogger("fleet.world")
 
@@ -47,8 +55,14 @@ class _Robot:
 
 
 class WorldApp:
-    def __init__(self, config: str | Path, status_file: str | Path | None = None, *,
-                 as_fast_as_possible: bool = False, bridge: Any = None) -> None:
+    def __init__(
+        self,
+        config: str | Path,
+        status_file: str | Path | None = None,
+        *,
+        as_fast_as_possible: bool = False,
+        bridge: Any = None,
+    ) -> None:
         self.config = Path(config)
         self.status_file = Path(status_file) if status_file else None
         self.as_fast_as_possible = as_fast_as_possible
@@ -107,10 +121,15 @@ class WorldApp:
         # Spread the scans of many robots over the scan period instead of all on one tick.
         phase = (len(self.robots) * 0.137 % 1.0) * period
         self.robots[spec.name] = _Robot(
-            spec=spec, channel=channel,
+            spec=spec,
+            channel=channel,
             angles=lidar.beam_angles(lidar_spec.angle_min, lidar_spec.increment, lidar_spec.beams),
-            next_odom=now, next_scan=now + phase)
-        log.info("robot '%s' (%s) spawned at (%.2f, %.2f, yaw %.2f)", spec.name, spec.model.type, pose.x, pose.y, pose.yaw)
+            next_odom=now,
+            next_scan=now + phase,
+        )
+        log.info(
+            "robot '%s' (%s) spawned at (%.2f, %.2f, yaw %.2f)", spec.name, spec.model.type, pose.x, pose.y, pose.yaw
+        )
         return True
 
     def _despawn(self, name: str) -> None:
@@ -151,7 +170,9 @@ class WorldApp:
         """Make the running world match `new` without touching what did not change."""
         old = self.spec
         if new.physics_rate != old.physics_rate:
-            log.warning("physics_rate change (%g -> %g Hz) applies at the next restart", old.physics_rate, new.physics_rate)
+            log.warning(
+                "physics_rate change (%g -> %g Hz) applies at the next restart", old.physics_rate, new.physics_rate
+            )
         old_obstacles = {o.name: o for o in old.obstacles}
         new_obstacles = {o.name: o for o in new.obstacles}
         for name, spec in old_obstacles.items():
@@ -203,7 +224,9 @@ class WorldApp:
                 if robot.channel is not None:
                     if stamp is None:
                         stamp = _stamp(now)
-                    robot.channel.publish_odom(stamp, state.x, state.y, state.yaw, state.linear, state.lateral, state.angular)
+                    robot.channel.publish_odom(
+                        stamp, state.x, state.y, state.yaw, state.linear, state.lateral, state.angular
+                    )
         if self._tick % self._slot_every == 0:
             self._slot(now)
         if bridge is not None and now >= self._next_clock:
@@ -228,13 +251,17 @@ class WorldApp:
             groups: dict[tuple, list[_Robot]] = {}
             for robot in due:
                 lid = robot.spec.lidar
-                groups.setdefault((lid.beams, lid.angle_min, lid.angle_max, lid.range_min, lid.range_max), []).append(robot)
+                groups.setdefault((lid.beams, lid.angle_min, lid.angle_max, lid.range_min, lid.range_max), []).append(
+                    robot
+                )
             for group in groups.values():
                 lid = group[0].spec.lidar
                 group_poses = np.array([poses[r.spec.name] for r in group])
                 owners_idx = np.array([index[r.spec.name] for r in group])
-                all_ranges = lidar.cast_many(scene, group_poses, owners_idx, group[0].angles, lid.range_min, lid.range_max)
-                for robot, pose, ranges in zip(group, group_poses, all_ranges):
+                all_ranges = lidar.cast_many(
+                    scene, group_poses, owners_idx, group[0].angles, lid.range_min, lid.range_max
+                )
+                for robot, pose, ranges in zip(group, group_poses, all_ranges, strict=False):
                     robot.next_scan = max(robot.next_scan + 1.0 / robot.spec.lidar.rate, now)
                     if robot.channel is not None:
                         robot.channel.publish_scan(stamp, ranges)
@@ -334,8 +361,14 @@ def _stamp(sim_time: float):
     return stamp(sim_time)
 
 
-def run_world(config: str | Path, status_file: str | Path | None = None, *, as_fast_as_possible: bool = False,
-              ros_args: list[str] | None = None, sim_duration: float | None = None) -> None:
+def run_world(
+    config: str | Path,
+    status_file: str | Path | None = None,
+    *,
+    as_fast_as_possible: bool = False,
+    ros_args: list[str] | None = None,
+    sim_duration: float | None = None,
+) -> None:
     """`fleet world` and `fleet_nodes/world`: validate, start ROS, run until SIGINT/SIGTERM.
 
     An invalid world.yaml raises WorldError before anything starts (the caller prints one line
@@ -354,8 +387,13 @@ def run_world(config: str | Path, status_file: str | Path | None = None, *, as_f
 
         signal.signal(signal.SIGINT, _stop)
         signal.signal(signal.SIGTERM, _stop)
-        log.info("world '%s' running: %d robots, %d obstacles, %s", app.spec.fleet, len(app.robots),
-                 len(app.physics.obstacles), "as fast as possible" if as_fast_as_possible or not app.spec.real_time else "real time")
+        log.info(
+            "world '%s' running: %d robots, %d obstacles, %s",
+            app.spec.fleet,
+            len(app.robots),
+            len(app.physics.obstacles),
+            "as fast as possible" if as_fast_as_possible or not app.spec.real_time else "real time",
+        )
         app.run(sim_duration)
     finally:
         if app is not None:

@@ -25,8 +25,13 @@ def world_main(argv: list[str]) -> int:
         load_world(args.config)  # fail fast with one line, before pybullet and rclpy load
         from fleet.world.app import run_world
 
-        run_world(args.config, args.status_file, as_fast_as_possible=args.as_fast_as_possible,
-                  ros_args=full, sim_duration=args.sim_duration)
+        run_world(
+            args.config,
+            args.status_file,
+            as_fast_as_possible=args.as_fast_as_possible,
+            ros_args=full,
+            sim_duration=args.sim_duration,
+        )
     except FleetError as error:
         sys.stderr.write(f"fleet: error: {error}\n")
         return error.exit_code or EXIT_USAGE

@@ -86,7 +86,7 @@ class RobotSpec:
     cmd_timeout: float = 0.5
     ground_truth: bool = False
 
-    def same_except_pose(self, other: "RobotSpec") -> bool:
+    def same_except_pose(self, other: RobotSpec) -> bool:
         """True when a reload changed nothing but the initial pose (which only matters at spawn)."""
         return self == RobotSpec(**{**other.__dict__, "pose": self.pose})
 
@@ -120,7 +120,7 @@ class WorldSpec:
 class _Value:
     """A converted YAML node keeping the mark of where it was written."""
 
-    __slots__ = ("value", "line", "column")
+    __slots__ = ("column", "line", "value")
 
     def __init__(self, value: Any, mark) -> None:
         self.value = value
@@ -166,8 +166,15 @@ class _Reader:
     def raw(self, key: str) -> _Value | None:
         return self.data.get(key)
 
-    def number(self, key: str, default: float | None = None, *, minimum: float | None = None,
-               positive: bool = False, maximum: float | None = None) -> float:
+    def number(
+        self,
+        key: str,
+        default: float | None = None,
+        *,
+        minimum: float | None = None,
+        positive: bool = False,
+        maximum: float | None = None,
+    ) -> float:
         node = self.data.get(key)
         if node is None or node.value is None:
             if default is None:
@@ -215,11 +222,14 @@ class _Reader:
     def name(self, key: str = "name") -> str:
         value = self.string(key)
         if not NAME_RE.match(value):
-            self.fail(self.data[key], f"{self.what}: '{value}' is not a valid name "
-                      "(letters, digits and underscores, not starting with a digit)")
+            self.fail(
+                self.data[key],
+                f"{self.what}: '{value}' is not a valid name "
+                "(letters, digits and underscores, not starting with a digit)",
+            )
         return value
 
-    def sub(self, key: str) -> "_Reader":
+    def sub(self, key: str) -> _Reader:
         node = self.data.get(key)
         if node is None:
             return _Reader(self.source, _Value({}, None), f"{self.what}.{key}")
@@ -236,7 +246,11 @@ class _Reader:
             self.fail(node, f"{self.what}: '{key}' must be a list of {count} numbers")
         out = []
         for item in items:
-            if isinstance(item.value, bool) or not isinstance(item.value, (int, float)) or not math.isfinite(item.value):
+            if (
+                isinstance(item.value, bool)
+                or not isinstance(item.value, (int, float))
+                or not math.isfinite(item.value)
+            ):
                 self.fail(item, f"{self.what}: '{key}' must contain numbers, got {item.value!r}")
             out.append(float(item.value))
         return tuple(out)
@@ -315,11 +329,18 @@ def _obstacle(reader: _Reader) -> ObstacleSpec:
     x, y = reader.numbers("position", 2)
     yaw = reader.number("yaw", 0.0)
     if kind == "cylinder":
-        return ObstacleSpec(name, "cylinder", x, y, yaw, radius=reader.number("radius", positive=True),
-                            height=reader.number("height", 1.0, positive=True))
+        return ObstacleSpec(
+            name,
+            "cylinder",
+            x,
+            y,
+            yaw,
+            radius=reader.number("radius", positive=True),
+            height=reader.number("height", 1.0, positive=True),
+        )
     node = reader.raw("size")
     if node is not None and isinstance(node.value, list) and len(node.value) == 2:
-        size = reader.numbers("size", 2) + (reader.number("height", 1.0, positive=True),)
+        size = (*reader.numbers("size", 2), reader.number("height", 1.0, positive=True))
     else:
         size = reader.numbers("size", 3)
     if min(size) <= 0:
@@ -333,8 +354,10 @@ def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         problem = getattr(error, "problem", None) or str(error)
-        raise WorldError(f"invalid YAML: {problem}",
-                         Location(source, mark.line + 1 if mark else None, mark.column + 1 if mark else None)) from None
+        raise WorldError(
+            f"invalid YAML: {problem}",
+            Location(source, mark.line + 1 if mark else None, mark.column + 1 if mark else None),
+        ) from None
     if root_node is None:
         raise WorldError("world description is empty", Location(source))
     root = _Reader(source, _convert(root_node), "world")
@@ -352,12 +375,12 @@ def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
     robots = [_robot(_Reader(source, item, "robot")) for item in items("robots")]
     for kind, group, nodes in (("obstacle", obstacles, items("obstacles")), ("robot", robots, items("robots"))):
         seen: set[str] = set()
-        for spec, node in zip(group, nodes):
+        for spec, node in zip(group, nodes, strict=False):
             if spec.name in seen:
                 root.fail(node, f"duplicate {kind} name '{spec.name}'")
             seen.add(spec.name)
     namespaces: set[str] = set()
-    for spec, node in zip(robots, items("robots")):
+    for spec, node in zip(robots, items("robots"), strict=False):
         if spec.namespace in namespaces:
             root.fail(node, f"robot '{spec.name}': namespace '{spec.namespace}' is used twice")
         namespaces.add(spec.namespace)

@@ -27,8 +27,7 @@ class Shape:
 def obstacle_shape(obstacle: ObstacleSpec) -> Shape:
     if obstacle.type == "cylinder":
         return Shape("circle", obstacle.x, obstacle.y, obstacle.yaw, radius=obstacle.radius)
-    return Shape("rect", obstacle.x, obstacle.y, obstacle.yaw,
-                 half_x=obstacle.size[0] / 2, half_y=obstacle.size[1] / 2)
+    return Shape("rect", obstacle.x, obstacle.y, obstacle.yaw, half_x=obstacle.size[0] / 2, half_y=obstacle.size[1] / 2)
 
 
 def robot_shape(model: ModelSpec, x: float, y: float, yaw: float) -> Shape:

@@ -35,10 +35,10 @@ class Scene:
     half: np.ndarray  # (N - n_circles, 2)
 
     @classmethod
-    def build(cls, shapes: list[Shape], owners: list[int]) -> "Scene":
-        circles = [(s, o) for s, o in zip(shapes, owners) if s.kind == "circle"]
+    def build(cls, shapes: list[Shape], owners: list[int]) -> Scene:
+        circles = [(s, o) for s, o in zip(shapes, owners, strict=False) if s.kind == "circle"]
         rects = []
-        for shape, owner in zip(shapes, owners):
+        for shape, owner in zip(shapes, owners, strict=False):
             if shape.kind == "rect":
                 rects.extend((piece, owner) for piece in _pieces(shape))
         ordered = circles + rects
@@ -66,9 +66,16 @@ def _pieces(rect: Shape) -> list[Shape]:
     for i in range(count):
         offset = -length / 2 + piece * (i + 0.5)
         lx, ly = (offset, 0.0) if along_x else (0.0, offset)
-        out.append(Shape("rect", rect.x + c * lx - s * ly, rect.y + s * lx + c * ly, rect.yaw,
-                         half_x=piece / 2 if along_x else rect.half_x,
-                         half_y=rect.half_y if along_x else piece / 2))
+        out.append(
+            Shape(
+                "rect",
+                rect.x + c * lx - s * ly,
+                rect.y + s * lx + c * ly,
+                rect.yaw,
+                half_x=piece / 2 if along_x else rect.half_x,
+                half_y=rect.half_y if along_x else piece / 2,
+            )
+        )
     return out
 
 
@@ -76,8 +83,16 @@ def beam_angles(angle_min: float, increment: float, beams: int) -> np.ndarray:
     return angle_min + increment * np.arange(beams, dtype=float)
 
 
-def cast(scene: Scene, x: float, y: float, yaw: float, angles: np.ndarray, range_min: float,
-         range_max: float, owner: int | None = None) -> np.ndarray:
+def cast(
+    scene: Scene,
+    x: float,
+    y: float,
+    yaw: float,
+    angles: np.ndarray,
+    range_min: float,
+    range_max: float,
+    owner: int | None = None,
+) -> np.ndarray:
     """Ranges of one scan taken at (x, y, yaw); `angles` (from beam_angles) are relative to the
     robot heading; the shapes of `owner` (the scanning robot's index) are left out.
     REP-117: no return within range_max is +inf, closer than range_min is -inf."""
@@ -85,8 +100,9 @@ def cast(scene: Scene, x: float, y: float, yaw: float, angles: np.ndarray, range
     return cast_many(scene, np.array([[x, y, yaw]]), owners, angles, range_min, range_max)[0]
 
 
-def cast_many(scene: Scene, poses: np.ndarray, owners: np.ndarray, angles: np.ndarray, range_min: float,
-              range_max: float) -> np.ndarray:
+def cast_many(
+    scene: Scene, poses: np.ndarray, owners: np.ndarray, angles: np.ndarray, range_min: float, range_max: float
+) -> np.ndarray:
     """Ranges (S, beams) of S scans with the same beam layout, taken at poses (S, 3) = x, y, yaw by
     the robots `owners` (S,) (-1: nobody).  One batch of numpy operations for all of them: numpy's
     per-call overhead, not arithmetic, is what a single scan costs."""
@@ -123,7 +139,7 @@ def cast_many(scene: Scene, poses: np.ndarray, owners: np.ndarray, angles: np.nd
         beam %= beams
     else:  # a partial fan: a window may also reach the fan from the other side of +-pi
         pair = np.concatenate((pair, pair))
-        beam = np.concatenate((beam, beam - int(round(per_turn))))
+        beam = np.concatenate((beam, beam - round(per_turn)))
         keep = (beam >= 0) & (beam < beams)
         pair, beam = pair[keep], beam[keep]
     sensor, shape = s_idx[pair], n_idx[pair]
@@ -175,8 +191,9 @@ def _rects(x, y, dx, dy, centers, yaws, halves):
     return np.where((near <= far) & (far >= 0.0), np.maximum(near, 0.0), np.inf)
 
 
-def hit_points(x: float, y: float, yaw: float, angles: np.ndarray, ranges: np.ndarray,
-               every: int = 1) -> list[tuple[float, float]]:
+def hit_points(
+    x: float, y: float, yaw: float, angles: np.ndarray, ranges: np.ndarray, every: int = 1
+) -> list[tuple[float, float]]:
     """World coordinates of the finite returns (every n-th beam), for pictures."""
     idx = np.arange(0, ranges.shape[0], max(every, 1))
     r = ranges[idx]
@@ -184,4 +201,4 @@ def hit_points(x: float, y: float, yaw: float, angles: np.ndarray, ranges: np.nd
     a = angles[idx][ok] + yaw
     r = r[ok]
     px, py = np.round(x + r * np.cos(a), 3), np.round(y + r * np.sin(a), 3)
-    return list(zip(px.tolist(), py.tolist()))
+    return list(zip(px.tolist(), py.tolist(), strict=False))

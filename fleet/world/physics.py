@@ -36,14 +36,15 @@ def _quiet_c_output():
     finally:
         os.dup2(saved[0], 1)
         os.dup2(saved[1], 2)
-        for fd in saved + [devnull]:
+        for fd in [*saved, devnull]:
             os.close(fd)
 
 
-def _load_urdf(client: int, path: str, pose: "Pose2D", z: float) -> int:
+def _load_urdf(client: int, path: str, pose: Pose2D, z: float) -> int:
     with _quiet_c_output():
-        return pb.loadURDF(path, basePosition=(pose.x, pose.y, z), baseOrientation=flat_quaternion(pose.yaw),
-                           physicsClientId=client)
+        return pb.loadURDF(
+            path, basePosition=(pose.x, pose.y, z), baseOrientation=flat_quaternion(pose.yaw), physicsClientId=client
+        )
 
 
 class SpawnError(Exception):
@@ -113,17 +114,31 @@ class LightRobot(_Robot):
     """
 
     def __init__(self, client: int, name: str, model: ModelSpec, pose: Pose2D, plane: int) -> None:
-        shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=model.radius, height=LIGHT_HEIGHT,
-                                        physicsClientId=client)
-        body = pb.createMultiBody(baseMass=10.0, baseCollisionShapeIndex=shape,
-                                  basePosition=(pose.x, pose.y, LIGHT_Z),
-                                  baseOrientation=flat_quaternion(pose.yaw), physicsClientId=client)
+        shape = pb.createCollisionShape(
+            pb.GEOM_CYLINDER, radius=model.radius, height=LIGHT_HEIGHT, physicsClientId=client
+        )
+        body = pb.createMultiBody(
+            baseMass=10.0,
+            baseCollisionShapeIndex=shape,
+            basePosition=(pose.x, pose.y, LIGHT_Z),
+            baseOrientation=flat_quaternion(pose.yaw),
+            physicsClientId=client,
+        )
         # Frictionless so a robot slides along walls instead of snagging; large roll/pitch inertia so
         # contacts barely tilt it; no damping (velocity is set every tick anyway); never sleeps.
-        pb.changeDynamics(body, -1, lateralFriction=0.0, spinningFriction=0.0, rollingFriction=0.0,
-                          restitution=0.0, linearDamping=0.0, angularDamping=0.0,
-                          localInertiaDiagonal=(1e3, 1e3, 0.5 * 10.0 * model.radius ** 2),
-                          activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
+        pb.changeDynamics(
+            body,
+            -1,
+            lateralFriction=0.0,
+            spinningFriction=0.0,
+            rollingFriction=0.0,
+            restitution=0.0,
+            linearDamping=0.0,
+            angularDamping=0.0,
+            localInertiaDiagonal=(1e3, 1e3, 0.5 * 10.0 * model.radius**2),
+            activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING,
+            physicsClientId=client,
+        )
         pb.setCollisionFilterPair(body, plane, -1, -1, 0, physicsClientId=client)
         super().__init__(client, name, model, body)
 
@@ -132,11 +147,16 @@ class LightRobot(_Robot):
         pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
         yaw = yaw_of(orn)
         if abs(orn[0]) + abs(orn[1]) > 1e-4 or abs(pos[2] - LIGHT_Z) > 1e-3:
-            pb.resetBasePositionAndOrientation(body, (pos[0], pos[1], LIGHT_Z), flat_quaternion(yaw),
-                                               physicsClientId=client)
+            pb.resetBasePositionAndOrientation(
+                body, (pos[0], pos[1], LIGHT_Z), flat_quaternion(yaw), physicsClientId=client
+            )
         v = self.linear
-        pb.resetBaseVelocity(body, (v * math.cos(yaw), v * math.sin(yaw), -gravity * dt),
-                             (0.0, 0.0, self.angular), physicsClientId=client)
+        pb.resetBaseVelocity(
+            body,
+            (v * math.cos(yaw), v * math.sin(yaw), -gravity * dt),
+            (0.0, 0.0, self.angular),
+            physicsClientId=client,
+        )
 
 
 class HuskyRobot(_Robot):
@@ -177,8 +197,14 @@ class HuskyRobot(_Robot):
         right = (self.linear + spread) / self.WHEEL_RADIUS
         joints = self.left + self.right
         targets = [left] * len(self.left) + [right] * len(self.right)
-        pb.setJointMotorControlArray(self.body, joints, pb.VELOCITY_CONTROL, targetVelocities=targets,
-                                     forces=[self.MAX_WHEEL_FORCE] * len(joints), physicsClientId=self.client)
+        pb.setJointMotorControlArray(
+            self.body,
+            joints,
+            pb.VELOCITY_CONTROL,
+            targetVelocities=targets,
+            forces=[self.MAX_WHEEL_FORCE] * len(joints),
+            physicsClientId=self.client,
+        )
 
 
 class RacecarRobot(_Robot):
@@ -193,8 +219,10 @@ class RacecarRobot(_Robot):
     def __init__(self, client: int, name: str, model: ModelSpec, pose: Pose2D) -> None:
         body = _load_urdf(client, "racecar/racecar.urdf", pose, 0.0)
         super().__init__(client, name, model, body)
-        joints = {pb.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
-                  for j in range(pb.getNumJoints(body, physicsClientId=client))}
+        joints = {
+            pb.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
+            for j in range(pb.getNumJoints(body, physicsClientId=client))
+        }
         self.drive = [j for n, j in joints.items() if n.endswith("wheel_joint")]
         self.steer = [j for n, j in joints.items() if "steering_hinge" in n]
         if not self.drive or not self.steer:
@@ -210,11 +238,17 @@ class RacecarRobot(_Robot):
         steer = 0.0 if abs(v) < 1e-3 else math.atan(w * self.WHEELBASE / v)
         steer = min(max(steer, -self.MAX_STEER), self.MAX_STEER)
         c = self.client
-        pb.setJointMotorControlArray(self.body, self.drive, pb.VELOCITY_CONTROL,
-                                     targetVelocities=[v / self.WHEEL_RADIUS] * len(self.drive),
-                                     forces=[self.MAX_FORCE] * len(self.drive), physicsClientId=c)
-        pb.setJointMotorControlArray(self.body, self.steer, pb.POSITION_CONTROL,
-                                     targetPositions=[steer] * len(self.steer), physicsClientId=c)
+        pb.setJointMotorControlArray(
+            self.body,
+            self.drive,
+            pb.VELOCITY_CONTROL,
+            targetVelocities=[v / self.WHEEL_RADIUS] * len(self.drive),
+            forces=[self.MAX_FORCE] * len(self.drive),
+            physicsClientId=c,
+        )
+        pb.setJointMotorControlArray(
+            self.body, self.steer, pb.POSITION_CONTROL, targetPositions=[steer] * len(self.steer), physicsClientId=c
+        )
 
 
 @dataclass
@@ -259,8 +293,13 @@ class PhysicsWorld:
         else:
             half = (spec.size[0] / 2, spec.size[1] / 2, spec.height / 2)
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=c)
-        body = pb.createMultiBody(0, shape, basePosition=(spec.x, spec.y, spec.height / 2),
-                                  baseOrientation=flat_quaternion(spec.yaw), physicsClientId=c)
+        body = pb.createMultiBody(
+            0,
+            shape,
+            basePosition=(spec.x, spec.y, spec.height / 2),
+            baseOrientation=flat_quaternion(spec.yaw),
+            physicsClientId=c,
+        )
         pb.changeDynamics(body, -1, lateralFriction=0.0, restitution=0.0, physicsClientId=c)
         self.obstacles[spec.name] = (body, spec)
         self._names[body] = (spec.name, "obstacle")
@@ -281,8 +320,10 @@ class PhysicsWorld:
                 continue
             x, y, yaw = robot.pose()
             if overlaps(shape, robot_shape(robot.model, x, y, yaw), SPAWN_MARGIN):
-                return (f"spawn pose ({pose.x:g}, {pose.y:g}) of robot '{name}' overlaps robot "
-                        f"'{other_name}' at ({x:.2f}, {y:.2f})")
+                return (
+                    f"spawn pose ({pose.x:g}, {pose.y:g}) of robot '{name}' overlaps robot "
+                    f"'{other_name}' at ({x:.2f}, {y:.2f})"
+                )
         return None
 
     def add_robot(self, name: str, model: ModelSpec, pose: Pose2D) -> None:

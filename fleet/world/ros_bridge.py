@@ -9,6 +9,7 @@ message object per robot and topic so publishing costs little more than serializ
 from __future__ import annotations
 
 import array
+import contextlib
 import math
 import threading
 import time
@@ -35,8 +36,8 @@ _PUB_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def stamp(sim_time: float) -> Time:
-    sec = int(math.floor(sim_time))
-    return Time(sec=sec, nanosec=min(int(round((sim_time - sec) * 1e9)), 999_999_999))
+    sec = math.floor(sim_time)
+    return Time(sec=sec, nanosec=min(round((sim_time - sec) * 1e9), 999_999_999))
 
 
 @dataclass
@@ -59,7 +60,9 @@ class RobotChannel:
         self._sim_now = clock_source
         self.odom_pub = node.create_publisher(Odometry, f"{ns}/odom", _PUB_QOS)
         self.scan_pub = node.create_publisher(LaserScan, f"{ns}/scan", _PUB_QOS)
-        self.truth_pub = node.create_publisher(PoseStamped, f"{ns}/ground_truth", _PUB_QOS) if spec.ground_truth else None
+        self.truth_pub = (
+            node.create_publisher(PoseStamped, f"{ns}/ground_truth", _PUB_QOS) if spec.ground_truth else None
+        )
         self.cmd_sub = node.create_subscription(Twist, f"{ns}/cmd_vel", self._on_cmd, _SUB_QOS)
         self.battery_sub = node.create_subscription(BatteryState, f"{ns}/battery", self._on_battery, _SUB_QOS)
 
@@ -161,10 +164,8 @@ class RosBridge:
         self._thread.start()
 
     def _spin(self) -> None:
-        try:
+        with contextlib.suppress(ExternalShutdownException, KeyboardInterrupt):
             self.executor.spin()
-        except (ExternalShutdownException, KeyboardInterrupt):
-            pass
 
     @property
     def logger(self):

@@ -13,13 +13,24 @@ from typing import Any
 
 def _corners(x: float, y: float, yaw: float, length: float, width: float) -> list[tuple[float, float]]:
     c, s = math.cos(yaw), math.sin(yaw)
-    return [(x + c * lx - s * ly, y + s * lx + c * ly)
-            for lx, ly in ((length / 2, width / 2), (-length / 2, width / 2),
-                           (-length / 2, -width / 2), (length / 2, -width / 2))]
+    return [
+        (x + c * lx - s * ly, y + s * lx + c * ly)
+        for lx, ly in (
+            (length / 2, width / 2),
+            (-length / 2, width / 2),
+            (-length / 2, -width / 2),
+            (length / 2, -width / 2),
+        )
+    ]
 
 
-def draw_snapshot(status: dict[str, Any], path: str | Path, obstacles: list[dict[str, Any]] | None = None,
-                  title: str | None = None, size: float = 9.0) -> Path:
+def draw_snapshot(
+    status: dict[str, Any],
+    path: str | Path,
+    obstacles: list[dict[str, Any]] | None = None,
+    title: str | None = None,
+    size: float = 9.0,
+) -> Path:
     """Write a PNG of obstacles, robots (name, heading, trail, lidar hits) and contacts."""
     import matplotlib
 
@@ -54,20 +65,44 @@ def draw_snapshot(status: dict[str, Any], path: str | Path, obstacles: list[dict
         x, y, yaw = pose["x"], pose["y"], pose["yaw"]
         hits = robot.get("scan_hits") or []
         if hits:
-            ax.scatter([h[0] for h in hits], [h[1] for h in hits], s=9, color=color, alpha=0.8, zorder=2,
-                       linewidths=0, label="lidar hits" if i == 0 else None)
+            ax.scatter(
+                [h[0] for h in hits],
+                [h[1] for h in hits],
+                s=9,
+                color=color,
+                alpha=0.8,
+                zorder=2,
+                linewidths=0,
+                label="lidar hits" if i == 0 else None,
+            )
         trail = robot.get("trail") or []
         if len(trail) > 1:
-            ax.plot([p[0] for p in trail] + [x], [p[1] for p in trail] + [y], color=color, alpha=0.6,
-                    linewidth=1.2, linestyle="--", zorder=3, label="trail" if i == 0 else None)
+            ax.plot(
+                [p[0] for p in trail] + [x],
+                [p[1] for p in trail] + [y],
+                color=color,
+                alpha=0.6,
+                linewidth=1.2,
+                linestyle="--",
+                zorder=3,
+                label="trail" if i == 0 else None,
+            )
         model = robot.get("model") or {"radius": 0.2}
         if "radius" in model:
             reach = model["radius"]
             ax.add_patch(Circle((x, y), reach, facecolor=color, edgecolor="black", alpha=0.9, zorder=4))
         else:
             reach = max(model["length"], model["width"]) / 2
-            ax.add_patch(Polygon(_corners(x, y, yaw, model["length"], model["width"]), closed=True,
-                                 facecolor=color, edgecolor="black", alpha=0.9, zorder=4))
+            ax.add_patch(
+                Polygon(
+                    _corners(x, y, yaw, model["length"], model["width"]),
+                    closed=True,
+                    facecolor=color,
+                    edgecolor="black",
+                    alpha=0.9,
+                    zorder=4,
+                )
+            )
         battery = robot.get("battery")
         label = name if battery is None else f"{name} ({battery * 100:.0f}%)"
         placed.append((x, y, yaw, reach, label))
@@ -86,17 +121,29 @@ def draw_snapshot(status: dict[str, Any], path: str | Path, obstacles: list[dict
     for x, y, yaw, reach, label in placed:
         # Heading arrows and labels sized to the picture, so they read at any world size.
         arrow = max(reach * 1.6, span * 0.035)
-        ax.annotate("", xy=(x + arrow * math.cos(yaw), y + arrow * math.sin(yaw)), xytext=(x, y),
-                    arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 1.5, "mutation_scale": 14}, zorder=5)
+        ax.annotate(
+            "",
+            xy=(x + arrow * math.cos(yaw), y + arrow * math.sin(yaw)),
+            xytext=(x, y),
+            arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 1.5, "mutation_scale": 14},
+            zorder=5,
+        )
         # Robots side by side (touching, say) would get their labels on top of each other: the
         # second one goes below its robot.
         crowded = any(abs(x - lx) < span * 0.15 and abs(y + reach - ly) < span * 0.04 for lx, ly in above)
         if not crowded:
             above.append((x, y + reach))
-        ax.annotate(label, (x, y - reach if crowded else y + reach), xytext=(0, -6 if crowded else 6),
-                    textcoords="offset points", ha="center", va="top" if crowded else "bottom",
-                    fontsize=7 if len(placed) > 20 else 9, zorder=6,
-                    bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "alpha": 0.75, "linewidth": 0})
+        ax.annotate(
+            label,
+            (x, y - reach if crowded else y + reach),
+            xytext=(0, -6 if crowded else 6),
+            textcoords="offset points",
+            ha="center",
+            va="top" if crowded else "bottom",
+            fontsize=7 if len(placed) > 20 else 9,
+            zorder=6,
+            bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "alpha": 0.75, "linewidth": 0},
+        )
     if placed:
         ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
     ax.set_aspect("equal")
@@ -104,9 +151,11 @@ def draw_snapshot(status: dict[str, Any], path: str | Path, obstacles: list[dict
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     contacts = (status.get("contacts") or {}).get("count", 0)
-    heading = title or (f"{status.get('fleet', 'world')}: t = {status.get('sim_time', 0):.1f} s, "
-                        f"RTF {status.get('real_time_factor', 0):.2f}, {len(robots)} robots, "
-                        f"{contacts} contact{'' if contacts == 1 else 's'}")
+    heading = title or (
+        f"{status.get('fleet', 'world')}: t = {status.get('sim_time', 0):.1f} s, "
+        f"RTF {status.get('real_time_factor', 0):.2f}, {len(robots)} robots, "
+        f"{contacts} contact{'' if contacts == 1 else 's'}"
+    )
     ax.set_title(heading)
     errors = status.get("errors") or []
     if errors:

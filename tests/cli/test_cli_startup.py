@@ -18,8 +18,9 @@ print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in {heavy})))
 
 
 def test_help_imports_no_heavy_module():
-    result = subprocess.run([sys.executable, "-c", PROBE.format(heavy=set(HEAVY))],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-c", PROBE.format(heavy=set(HEAVY))], capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout) == []
 

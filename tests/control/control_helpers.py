@@ -102,11 +102,13 @@ class Cluster(ControlPlane):
             return build_view(*client.status(fleet), time.time())
 
     def cli(self, *args: str, timeout: float = 60, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "fleet", *args], env=env or self.env, capture_output=True,
-                              text=True, timeout=timeout)
+        return subprocess.run(
+            [sys.executable, "-m", "fleet", *args], env=env or self.env, capture_output=True, text=True, timeout=timeout
+        )
 
     def wait_agents_online(self, *names: str, timeout: float = 15.0) -> None:
         """Agents answer status (an idle one answers too)."""
+
         def online():
             view = self.view()
             return all(any(a.name == n and a.online for a in view.agents) for n in names)

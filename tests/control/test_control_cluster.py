@@ -189,9 +189,7 @@ def test_concurrent_deploys_end_in_the_later_generation(cluster):
     loser = min(outcomes, key=lambda outcome: outcome.generation)
     assert loser.superseded_by == winner.generation or not loser.ok
     view = cluster.view("tiny")
-    assert {generation for (fleet, _), generation in view.generations.items() if fleet == "tiny"} == {
-        winner.generation
-    }
+    assert {generation for (fleet, _), generation in view.generations.items() if fleet == "tiny"} == {winner.generation}
     assert all(row.state == "running" for row in view.robots)
     expected = "5.0" if winner is outcomes[1] else "4.0"
     params = (cluster.state_dir("hostB") / "units" / "tiny" / "robot2" / "robot2.params.yaml").read_text()
@@ -232,7 +230,8 @@ def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
     assert view, "hostB still online 3 s after SIGKILL"
     assert time.monotonic() - killed_at < 3.0
     assert {row.name: row.state for row in view.robots if row.agent == "hostB"} == {
-        "robot2": "offline", "robot3": "offline"
+        "robot2": "offline",
+        "robot3": "offline",
     }
     status = cluster.cli("status", "--connect", cluster.endpoint, "--fleet", "tiny")
     assert status.returncode != 0 and "offline" in status.stdout
@@ -240,8 +239,9 @@ def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
 
     # A deploy while hostB is away: hostA's robots are deployed, hostB's stay pending, exit non-zero.
     spec = cluster.spec()
-    done = cluster.cli("deploy", str(spec), "--connect", cluster.endpoint, "--set", "robot1.sleeper.period=1.5",
-                       "--timeout", "10")
+    done = cluster.cli(
+        "deploy", str(spec), "--connect", cluster.endpoint, "--set", "robot1.sleeper.period=1.5", "--timeout", "10"
+    )
     assert done.returncode != 0 and "unreachable" in done.stdout, done.stdout
     view = cluster.view("tiny")
     assert robot(view, "robot1").state == "running" and robot(view, "robot1").generation > first.generation
@@ -281,8 +281,12 @@ def test_logs_follow_streams_new_lines(cluster):
     import sys
 
     cluster.deploy(cluster.spec())
-    follower = subprocess.Popen([sys.executable, "-m", "fleet", "logs", "robot1", "-f", "--tail", "1",
-                                 "--connect", cluster.endpoint], env=cluster.env, stdout=subprocess.PIPE, text=True)
+    follower = subprocess.Popen(
+        [sys.executable, "-m", "fleet", "logs", "robot1", "-f", "--tail", "1", "--connect", cluster.endpoint],
+        env=cluster.env,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         ticks = set()
         deadline = time.monotonic() + 20

@@ -14,8 +14,11 @@ def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp
     cluster = fresh_cluster
     state = tmp_path / "state"
     env = dict(cluster.env, FLEET_STATE_DIR=str(state), FLEET_CONNECT=cluster.endpoint)
-    spec = cluster.spec(agents={"local": {}}, defaults={"template": "tiny", "agent": "local"},
-                        robots=[{"name": "robot1"}, {"name": "robot2"}])
+    spec = cluster.spec(
+        agents={"local": {}},
+        defaults={"template": "tiny", "agent": "local"},
+        robots=[{"name": "robot1"}, {"name": "robot2"}],
+    )
     try:
         done = cluster.cli("deploy", str(spec), env=env)
         assert done.returncode == 0, done.stdout + done.stderr
@@ -28,7 +31,8 @@ def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp
         assert status.returncode == 0, status.stdout + status.stderr
         robots = json.loads(status.stdout)["robots"]
         assert {(r["name"], r["agent"], r["state"]) for r in robots} == {
-            ("robot1", "local", "running"), ("robot2", "local", "running")
+            ("robot1", "local", "running"),
+            ("robot2", "local", "running"),
         }
         node_pids = {node["pid"] for r in robots for node in r["nodes"]}
 

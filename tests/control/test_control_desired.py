@@ -45,8 +45,9 @@ def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_cluster):
     assert robot(cluster.view("tiny"), "robot1").pids == robot1_pids  # hostA had nothing left to do
 
     # An older desired state put later (a slow deployer) changes nothing: the later generation wins.
-    stale = p.ApplyRequest(fleet="tiny", agent="hostB", generation=first.generation, domain_id=cluster.domain_id,
-                           bundles=[])  # fmt: skip
+    stale = p.ApplyRequest(
+        fleet="tiny", agent="hostB", generation=first.generation, domain_id=cluster.domain_id, bundles=[]
+    )
     with cluster.client() as client:
         client.put_desired([stale])
     cluster.kill("agent-hostB", signal.SIGTERM)
@@ -83,8 +84,9 @@ def test_bad_desired_states_are_ignored(fresh_cluster):
     outcome = cluster.deploy(cluster.spec())
     assert outcome.ok
     before = cluster.view("tiny")
-    newer = p.ApplyRequest(fleet="tiny", agent="hostA", generation=outcome.generation + 1,
-                           domain_id=cluster.domain_id, bundles=[])  # fmt: skip
+    newer = p.ApplyRequest(
+        fleet="tiny", agent="hostA", generation=outcome.generation + 1, domain_id=cluster.domain_id, bundles=[]
+    )
     with cluster.client() as client:
         client.session.put(p.desired_key("tiny", "hostB"), b"{not json")
         client.session.put(p.desired_key("tiny", "hostB"), p.encode(newer))  # hostA's, on hostB's key

@@ -31,8 +31,15 @@ def bundle(name="robot1", digest=DIGEST, **changes) -> dict:
 
 
 def apply(**changes) -> dict:
-    data = {"v": 1, "kind": "apply", "fleet": "two_robots", "agent": "hostA", "generation": 5,
-            "domain_id": 42, "bundles": [bundle()]}  # fmt: skip
+    data = {
+        "v": 1,
+        "kind": "apply",
+        "fleet": "two_robots",
+        "agent": "hostA",
+        "generation": 5,
+        "domain_id": 42,
+        "bundles": [bundle()],
+    }
     data.update(changes)
     return data
 
@@ -51,7 +58,7 @@ def test_a_valid_apply_round_trips():
 @pytest.mark.parametrize(
     "payload, code",
     [
-        (b"{\"v\": 1, \"kind\": \"apply\", \"fleet\": \"two", "malformed"),  # truncated
+        (b'{"v": 1, "kind": "apply", "fleet": "two', "malformed"),  # truncated
         (b"\xff\xfe not utf-8", "malformed"),
         (b"[]", "malformed"),
         (b"", "malformed"),
@@ -162,7 +169,9 @@ def test_plan_changes_hot_updates_hot_files_and_retries_failed_units():
 def test_overrides_are_merged_into_the_params_file():
     files = {
         "robot1.launch.yaml": "launch: []\n",
-        "robot1.params.yaml": yaml.safe_dump({"/robot1/controller": {"ros__parameters": {"max_speed": 0.5, "loop": True}}}),
+        "robot1.params.yaml": yaml.safe_dump(
+            {"/robot1/controller": {"ros__parameters": {"max_speed": 0.5, "loop": True}}}
+        ),
     }
     merged = with_overrides(files, {"/robot1/controller": {"max_speed": 0.9}, "/robot1/battery": {"capacity": 7.0}})
     data = yaml.safe_load(merged["robot1.params.yaml"])

@@ -19,12 +19,21 @@ def write(path, text):
 def credentials(tmp_path):
     users = write(tmp_path / "users.txt", "agent:agent-secret\ndeployer:deploy-secret\n")
     return {
-        "router": write(tmp_path / "router.json5", '{transport: {auth: {usrpwd: {user: "router", '
-                        f'password: "router-secret", dictionary_file: "{users}"}}}}}}}}\n'),
-        "agent": write(tmp_path / "agent.json5", '{transport: {auth: {usrpwd: {user: "agent", password: "agent-secret"}}}}\n'),
-        "deployer": write(tmp_path / "deployer.json5",
-                          '{transport: {auth: {usrpwd: {user: "deployer", password: "deploy-secret"}}}}\n'),
-        "wrong": write(tmp_path / "wrong.json5", '{transport: {auth: {usrpwd: {user: "deployer", password: "guess"}}}}\n'),
+        "router": write(
+            tmp_path / "router.json5",
+            '{transport: {auth: {usrpwd: {user: "router", '
+            f'password: "router-secret", dictionary_file: "{users}"}}}}}}}}\n',
+        ),
+        "agent": write(
+            tmp_path / "agent.json5", '{transport: {auth: {usrpwd: {user: "agent", password: "agent-secret"}}}}\n'
+        ),
+        "deployer": write(
+            tmp_path / "deployer.json5",
+            '{transport: {auth: {usrpwd: {user: "deployer", password: "deploy-secret"}}}}\n',
+        ),
+        "wrong": write(
+            tmp_path / "wrong.json5", '{transport: {auth: {usrpwd: {user: "deployer", password: "guess"}}}}\n'
+        ),
     }
 
 
@@ -50,8 +59,9 @@ def test_clients_without_credentials_cannot_query_or_deploy(fresh_cluster, crede
     refused = cluster.cli("status", "--connect", cluster.endpoint)
     assert refused.returncode != 0
 
-    allowed = cluster.cli("deploy", str(spec), "--connect", cluster.endpoint,
-                          "--zenoh-config", str(credentials["deployer"]))
+    allowed = cluster.cli(
+        "deploy", str(spec), "--connect", cluster.endpoint, "--zenoh-config", str(credentials["deployer"])
+    )
     assert allowed.returncode == 0, allowed.stdout + allowed.stderr
     env = dict(cluster.env, FLEET_ZENOH_CONFIG=str(credentials["deployer"]))
     status = cluster.cli("status", "--connect", cluster.endpoint, "--json", env=env)

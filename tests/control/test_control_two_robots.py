@@ -66,8 +66,17 @@ def test_deploy_status_and_noop_redeploy(two_robots):
 def test_set_on_robot2_restarts_only_robot2_and_reaches_the_node(two_robots):
     cluster = two_robots
     before = pids(cluster.view("two_robots"))
-    done = cluster.cli("deploy", str(cluster.spec_file), "--set", "robot2.controller.max_speed=0.9",
-                       "--connect", cluster.endpoint, "--timeout", "90", timeout=120)
+    done = cluster.cli(
+        "deploy",
+        str(cluster.spec_file),
+        "--set",
+        "robot2.controller.max_speed=0.9",
+        "--connect",
+        cluster.endpoint,
+        "--timeout",
+        "90",
+        timeout=120,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     after = pids(cluster.view("two_robots"))
     assert after["robot1"] == before["robot1"] and after["world"] == before["world"]
@@ -89,8 +98,15 @@ def test_live_parameter_set_is_checked_and_kept(two_robots):
     assert desired["overrides"]["robot1"]["/robot1/controller"]["max_speed"] == 0.7
     params = (cluster.state_dir("hostA") / "units" / "two_robots" / "robot1" / "robot1.params.yaml").read_text()
     assert yaml.safe_load(params)["/robot1/controller"]["ros__parameters"]["max_speed"] == 0.7
-    diff = cluster.cli("diff", str(cluster.spec_file), "--set", "robot2.controller.max_speed=0.9", "--json",
-                       "--connect", cluster.endpoint)
+    diff = cluster.cli(
+        "diff",
+        str(cluster.spec_file),
+        "--set",
+        "robot2.controller.max_speed=0.9",
+        "--json",
+        "--connect",
+        cluster.endpoint,
+    )
     row = next(r for r in json.loads(diff.stdout) if r["robot"] == "robot1")
     assert row["change"] == "unchanged" and "max_speed=0.7" in row["detail"]
 

@@ -25,29 +25,52 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def world_file(contacts: int = 30) -> dict:
     """A world status file as fleet/world/status.py describes it (trails, hits, many contacts)."""
+
     def robot_entry(x):
-        return {"pose": {"x": x, "y": 0.0, "yaw": 0.0}, "velocity": {"linear": 0.5, "angular": 0.0},
-                "battery": 0.9, "model": {"type": "light", "radius": 0.2}, "namespace": "/r",
-                "trail": [[x - i * 0.01, 0.0] for i in range(60)], "scan_hits": [[x + 1, i * 0.01] for i in range(90)]}
+        return {
+            "pose": {"x": x, "y": 0.0, "yaw": 0.0},
+            "velocity": {"linear": 0.5, "angular": 0.0},
+            "battery": 0.9,
+            "model": {"type": "light", "radius": 0.2},
+            "namespace": "/r",
+            "trail": [[x - i * 0.01, 0.0] for i in range(60)],
+            "scan_hits": [[x + 1, i * 0.01] for i in range(90)],
+        }
 
     return {
-        "fleet": "bump", "sim_time": 12.5, "wall_time": 1.0, "real_time_factor": 0.98, "physics_rate": 240.0,
+        "fleet": "bump",
+        "sim_time": 12.5,
+        "wall_time": 1.0,
+        "real_time_factor": 0.98,
+        "physics_rate": 240.0,
         "robots": {"robot1": robot_entry(0.4), "robot2": robot_entry(0.8)},
-        "obstacles": [{"name": "wall", "type": "box", "position": [3.0, 0.0], "yaw": 0.0, "size": [0.2, 3.0, 0.5]},
-                      {"name": "pillar", "type": "cylinder", "position": [0.0, 2.0], "yaw": 0.0, "radius": 0.3,
-                       "height": 1.0}],
-        "contacts": {"count": contacts, "last": [{"sim_time": float(i), "a": "robot1", "b": "robot2",
-                                                  "kind": "robot-robot"} for i in range(min(contacts, 20))]},
+        "obstacles": [
+            {"name": "wall", "type": "box", "position": [3.0, 0.0], "yaw": 0.0, "size": [0.2, 3.0, 0.5]},
+            {"name": "pillar", "type": "cylinder", "position": [0.0, 2.0], "yaw": 0.0, "radius": 0.3, "height": 1.0},
+        ],
+        "contacts": {
+            "count": contacts,
+            "last": [
+                {"sim_time": float(i), "a": "robot1", "b": "robot2", "kind": "robot-robot"}
+                for i in range(min(contacts, 20))
+            ],
+        },
         "errors": [{"sim_time": 3.0, "message": "robot 'robot3' not spawned: overlaps obstacle 'pillar'"}],
         "some_future_key": {"ignored": True},
-    }  # fmt: skip
+    }
 
 
 def agent_status(fleet="bump", agent="hostB", world=None, robots=("world",)) -> p.StatusReply:
     info = p.AgentInfo(name=agent, hostname="h", cores=2, pid=1, version="0", started_at=0.0)
-    return p.StatusReply(agent=info, fleet=fleet, time=0.0, world=world,
-                         robots=[p.RobotState(name=name, kind="world" if name == "world" else "robot",
-                                              state="running") for name in robots])  # fmt: skip
+    return p.StatusReply(
+        agent=info,
+        fleet=fleet,
+        time=0.0,
+        world=world,
+        robots=[
+            p.RobotState(name=name, kind="world" if name == "world" else "robot", state="running") for name in robots
+        ],
+    )
 
 
 def test_status_summary_drops_histories_and_keeps_the_last_contacts():
@@ -91,9 +114,11 @@ def test_the_world_written_by_the_world_process_validates(tmp_path):
     from fleet.world.app import WorldApp
 
     config = tmp_path / "world.yaml"
-    config.write_text("fleet: t\nobstacles:\n- {name: pillar, type: cylinder, position: [0.0, 2.0], radius: 0.3}\n"
-                      "- {name: wall, type: wall, position: [2.0, 0.0], size: [0.2, 2.0, 0.5]}\n"
-                      "robots:\n- {name: robot1, pose: {x: 0.0, y: 0.0}}\n- {name: robot2, pose: {x: 1.0, y: 0.0}}\n")
+    config.write_text(
+        "fleet: t\nobstacles:\n- {name: pillar, type: cylinder, position: [0.0, 2.0], radius: 0.3}\n"
+        "- {name: wall, type: wall, position: [2.0, 0.0], size: [0.2, 2.0, 0.5]}\n"
+        "robots:\n- {name: robot1, pose: {x: 0.0, y: 0.0}}\n- {name: robot2, pose: {x: 1.0, y: 0.0}}\n"
+    )
     app = WorldApp(config, as_fast_as_possible=True)
     try:
         app.physics.command("robot1", 0.8, 0.0)
@@ -113,9 +138,18 @@ def test_view_shows_worlds_and_robot_poses():
     robots_agent = agent_status(agent="hostA", robots=("robot1", "robot2"))
     view = build_view([agent_status(world=world), robots_agent], [], now=0.0)
     data = view.to_json()
-    assert data["worlds"] == [{"fleet": "bump", "agent": "hostB", "sim_time": 12.5, "real_time_factor": 0.98,
-                               "robots": 2, "contacts": world.contacts.model_dump(),
-                               "errors": [world.errors[0].model_dump()], "age": None}]  # fmt: skip
+    assert data["worlds"] == [
+        {
+            "fleet": "bump",
+            "agent": "hostB",
+            "sim_time": 12.5,
+            "real_time_factor": 0.98,
+            "robots": 2,
+            "contacts": world.contacts.model_dump(),
+            "errors": [world.errors[0].model_dump()],
+            "age": None,
+        }
+    ]
     row = robot(view, "robot1")
     assert row.pose == {"x": 0.4, "y": 0.0, "yaw": 0.0} and row.velocity == {"linear": 0.5, "angular": 0.0}
     assert row.battery == 0.9 and robot(view, "robot2").pose["x"] == 0.8
@@ -212,8 +246,9 @@ def test_robots_driving_into_each_other_show_as_contacts_and_in_a_snapshot(bump,
     assert world["fleet"] == "bump" and world["agent"] == "hostB" and world["robots"] == 2
     assert world["sim_time"] > 0 and world["real_time_factor"] > 0 and world["errors"] == []
     assert world["contacts"]["count"] > 0
-    assert any({c["a"], c["b"]} == {"robot1", "robot2"} and c["kind"] == "robot-robot"
-               for c in world["contacts"]["last"]), world["contacts"]
+    assert any(
+        {c["a"], c["b"]} == {"robot1", "robot2"} and c["kind"] == "robot-robot" for c in world["contacts"]["last"]
+    ), world["contacts"]
     rows = {row["name"]: row for row in data["robots"]}
     assert rows["robot1"]["velocity"] is not None and rows["robot2"]["pose"] is not None
     # Neither passed through the other: robot1 (from x=0) is still left of robot2 (from x=1.5).

@@ -24,8 +24,9 @@ def unit(name: str, uptime: float = OLD, state: str = "running") -> p.RobotState
 
 
 def world(age: float = 0.2, **robots: dict) -> p.WorldSummary:
-    return p.WorldSummary(age=age, robots={name: p.WorldRobot(pose=p.Pose(x=0, y=0, yaw=0), **flow)
-                                           for name, flow in robots.items()})  # fmt: skip
+    return p.WorldSummary(
+        age=age, robots={name: p.WorldRobot(pose=p.Pose(x=0, y=0, yaw=0), **flow) for name, flow in robots.items()}
+    )
 
 
 FLOWING = {"cmd_age": 0.1, "odom_subscribers": 2}
@@ -47,25 +48,35 @@ def test_a_silent_world_makes_every_robot_degraded_with_the_reason():
     assert got["r1"] == ("degraded", f"no /clock from the world for {WORLD_SILENT + 9:.0f} s (world not advancing)")
 
 
-@pytest.mark.parametrize("flow, reason", [
-    ({"cmd_age": None, "odom_subscribers": 2}, "no cmd_vel from it has reached the world yet"),
-    ({"cmd_age": NO_COMMANDS + 7, "odom_subscribers": 2}, f"no cmd_vel from it has reached the world for {NO_COMMANDS + 7:.0f} s"),
-    ({"cmd_age": 0.1, "odom_subscribers": 0}, "none of its nodes receives the world's odom"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "flow, reason",
+    [
+        ({"cmd_age": None, "odom_subscribers": 2}, "no cmd_vel from it has reached the world yet"),
+        (
+            {"cmd_age": NO_COMMANDS + 7, "odom_subscribers": 2},
+            f"no cmd_vel from it has reached the world for {NO_COMMANDS + 7:.0f} s",
+        ),
+        ({"cmd_age": 0.1, "odom_subscribers": 0}, "none of its nodes receives the world's odom"),
+    ],
+)
 def test_a_robot_cut_off_from_the_world_is_degraded(flow, reason):
     got = rows(status("sim", [unit("world")], world(r1=flow)), status("rack", [unit("r1")]))
     assert got["r1"] == ("degraded", reason)
 
 
 def test_a_robot_just_started_without_data_yet_is_starting_not_degraded():
-    got = rows(status("sim", [unit("world")], world(r1={"cmd_age": None, "odom_subscribers": 0})),
-               status("rack", [unit("r1", uptime=1.0)]))  # fmt: skip
+    got = rows(
+        status("sim", [unit("world")], world(r1={"cmd_age": None, "odom_subscribers": 0})),
+        status("rack", [unit("r1", uptime=1.0)]),
+    )
     assert got["r1"][0] == "starting" and got["r1"][1].startswith("waiting for data")
 
 
 def test_a_robot_whose_data_flowed_is_degraded_when_it_stops_even_just_after_start():
-    got = rows(status("sim", [unit("world")], world(age=WORLD_SILENT + 2, r1=FLOWING)),
-               status("rack", [unit("r1", uptime=1.0)]))  # fmt: skip
+    got = rows(
+        status("sim", [unit("world")], world(age=WORLD_SILENT + 2, r1=FLOWING)),
+        status("rack", [unit("r1", uptime=1.0)]),
+    )
     assert got["r1"][0] == "degraded"
 
 
@@ -89,9 +100,11 @@ def test_without_a_world_processes_decide():
 
 
 def test_robots_of_an_agent_that_does_not_answer_say_so():
-    registry = p.RegistryReply(fleet="f", agents={"rack": p.AgentSeen(last_seen=96.0, online=False)},
-                               plan=p.PlanRecord(fleet="f", generation=1, robots={"r1": "rack", "world": "sim"},
-                                                 deployed_at=0.0))  # fmt: skip
+    registry = p.RegistryReply(
+        fleet="f",
+        agents={"rack": p.AgentSeen(last_seen=96.0, online=False)},
+        plan=p.PlanRecord(fleet="f", generation=1, robots={"r1": "rack", "world": "sim"}, deployed_at=0.0),
+    )
     view = build_view([status("sim", [unit("world")], world())], [registry], now=100.0)
     r1 = next(row for row in view.robots if row.name == "r1")
     assert (r1.state, r1.reason) == ("offline", "agent rack does not answer (last seen 4 s ago)")
@@ -118,9 +131,13 @@ def test_discovery_ports_are_valid_and_distinct_for_every_domain():
 
 
 def test_nodes_of_a_fleet_with_a_server_are_its_clients_on_udp():
-    env = ros_environment(5, base={"ROS_STATIC_PEERS": "1.2.3.4", "ROS_SUPER_CLIENT": "TRUE"}, discovery_server="10.0.0.1:8652")
+    env = ros_environment(
+        5, base={"ROS_STATIC_PEERS": "1.2.3.4", "ROS_SUPER_CLIENT": "TRUE"}, discovery_server="10.0.0.1:8652"
+    )
     assert env["ROS_DISCOVERY_SERVER"] == "10.0.0.1:8652" and env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
-    assert env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4" and "ROS_STATIC_PEERS" not in env and "ROS_SUPER_CLIENT" not in env
+    assert (
+        env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4" and "ROS_STATIC_PEERS" not in env and "ROS_SUPER_CLIENT" not in env
+    )
     alone = ros_environment(5, base={"ROS_DISCOVERY_SERVER": "x"})
     assert alone["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST" and "ROS_DISCOVERY_SERVER" not in alone
 
@@ -128,16 +145,36 @@ def test_nodes_of_a_fleet_with_a_server_are_its_clients_on_udp():
 @pytest.mark.parametrize("value", ["10.0.0.1", "host:80", "10.0.0.1:0", "10.0.0.1:99999", "999.1.1.1:80", "a\\nb:1"])
 def test_a_bad_discovery_server_in_an_apply_is_refused(value):
     with pytest.raises(p.ProtocolError):
-        p.decode(p.ApplyRequest(fleet="f", agent="a", generation=1, domain_id=1, bundles=[]).model_dump_json()
-                 .replace('"discovery_server":null', f'"discovery_server":"{value}"').encode(), p.ApplyRequest)
+        p.decode(
+            p.ApplyRequest(fleet="f", agent="a", generation=1, domain_id=1, bundles=[])
+            .model_dump_json()
+            .replace('"discovery_server":null', f'"discovery_server":"{value}"')
+            .encode(),
+            p.ApplyRequest,
+        )
 
 
 def test_an_agent_address_that_is_not_an_address_is_one_line_and_exit_2():
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, "-m", "fleet", "agent", "--name", "x", "--address", "10.0.0.300",
-                           "--connect", "tcp/127.0.0.1:1"], capture_output=True, text=True, timeout=60)  # fmt: skip
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "fleet",
+            "agent",
+            "--name",
+            "x",
+            "--address",
+            "10.0.0.300",
+            "--connect",
+            "tcp/127.0.0.1:1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 2
     assert done.stderr.strip() == "fleet: error: --address: '10.0.0.300' is not an IPv4 address (such as 10.0.0.5)"
 
@@ -146,10 +183,21 @@ def test_zenoh_bridges_carry_each_remote_robot_both_ways_and_the_clock():
     from fleet.dataplane.topics import bridge_routes
 
     routes = bridge_routes("sim", [("a1", "/a1", "rack_a"), ("w1", "/w1", "sim"), ("b1", "/fleet/b1", "rack_b")])
-    names = {agent: ({r.name for r in route.exports}, {r.name for r in route.imports}) for agent, route in routes.items()}
-    assert names["sim"] == ({"/clock", "/a1/odom", "/a1/scan", "/a1/ground_truth", "/fleet/b1/odom", "/fleet/b1/scan",
-                             "/fleet/b1/ground_truth"},
-                            {"/a1/cmd_vel", "/a1/battery", "/fleet/b1/cmd_vel", "/fleet/b1/battery"})  # fmt: skip
+    names = {
+        agent: ({r.name for r in route.exports}, {r.name for r in route.imports}) for agent, route in routes.items()
+    }
+    assert names["sim"] == (
+        {
+            "/clock",
+            "/a1/odom",
+            "/a1/scan",
+            "/a1/ground_truth",
+            "/fleet/b1/odom",
+            "/fleet/b1/scan",
+            "/fleet/b1/ground_truth",
+        },
+        {"/a1/cmd_vel", "/a1/battery", "/fleet/b1/cmd_vel", "/fleet/b1/battery"},
+    )
     assert names["rack_a"] == ({"/a1/cmd_vel", "/a1/battery"}, {"/clock", "/a1/odom", "/a1/scan", "/a1/ground_truth"})
     assert not any("/w1/" in name for pair in names.values() for group in pair for name in group)  # same computer
     assert bridge_routes("sim", [("w1", "/w1", "sim")]) == {"sim": p.BridgeRoutes()}
@@ -169,13 +217,29 @@ def test_ros_tools_get_the_fleets_domain_and_discovery_server():
     from fleet.control.view import FleetView
     from fleet.errors import FleetError
 
-    view = FleetView(agents=[], robots=[], domain_ids={"f": 7},
-                     discovery={"f": [{"agent": "sim", "server": "10.0.0.1:9152", "pid": 1}]})  # fmt: skip
-    assert tool_environment(view, None, None) == {"ROS_DOMAIN_ID": "7", "ROS_DISCOVERY_SERVER": "10.0.0.1:9152",
-                                                  "ROS_SUPER_CLIENT": "TRUE", "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
-    zenoh = FleetView(agents=[], robots=[], domain_ids={"f": 7},
-                      discovery={"f": [{"agent": "a", "server": "127.0.0.1:9152", "pid": 1},
-                                       {"agent": "b", "server": "127.0.0.1:9153", "pid": 2}]})  # fmt: skip
+    view = FleetView(
+        agents=[],
+        robots=[],
+        domain_ids={"f": 7},
+        discovery={"f": [{"agent": "sim", "server": "10.0.0.1:9152", "pid": 1}]},
+    )
+    assert tool_environment(view, None, None) == {
+        "ROS_DOMAIN_ID": "7",
+        "ROS_DISCOVERY_SERVER": "10.0.0.1:9152",
+        "ROS_SUPER_CLIENT": "TRUE",
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+    }
+    zenoh = FleetView(
+        agents=[],
+        robots=[],
+        domain_ids={"f": 7},
+        discovery={
+            "f": [
+                {"agent": "a", "server": "127.0.0.1:9152", "pid": 1},
+                {"agent": "b", "server": "127.0.0.1:9153", "pid": 2},
+            ]
+        },
+    )
     with pytest.raises(FleetError, match="pick the agent on this one with --agent"):
         tool_environment(zenoh, "f", None)
     assert tool_environment(zenoh, "f", "b")["ROS_DISCOVERY_SERVER"] == "127.0.0.1:9153"

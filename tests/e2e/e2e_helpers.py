@@ -3,6 +3,7 @@ odometry, and pose watching.  Bringing fleets up is fleet.testing's job, not thi
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import time
@@ -22,7 +23,9 @@ def world_waypoints(fleet, robot: str) -> list[tuple[float, float]]:
     spec = fleet.spec.robot(robot)
     flat = fleet.expansion.robot(robot).parameters.effective()["controller"]["waypoints"]
     c, s = math.cos(spec.pose.yaw), math.sin(spec.pose.yaw)
-    return [(spec.pose.x + c * x - s * y, spec.pose.y + s * x + c * y) for x, y in zip(flat[::2], flat[1::2])]
+    return [
+        (spec.pose.x + c * x - s * y, spec.pose.y + s * x + c * y) for x, y in zip(flat[::2], flat[1::2], strict=False)
+    ]
 
 
 class RouteProgress:
@@ -59,14 +62,20 @@ def wait_driving(fleet, robots, sim_timeout: float = 15.0, distance: float = 0.1
         moved.update(robot for robot in robots if fleet.pose(robot).distance_to(start[robot]) > distance)
         return moved == set(robots)
 
-    fleet.wait_for(all_moved, sim_timeout=sim_timeout, what=f"{', '.join(robots)} to drive {distance} m",
-                   explain=lambda: f"moved so far: {sorted(moved)}")
+    fleet.wait_for(
+        all_moved,
+        sim_timeout=sim_timeout,
+        what=f"{', '.join(robots)} to drive {distance} m",
+        explain=lambda: f"moved so far: {sorted(moved)}",
+    )
 
 
 def odom_speeds(messages, window: float = 0.5) -> list[float]:
     """Speeds (m/s) measured from odometry positions over `window` seconds of message (sim) time."""
-    samples = [(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, m.pose.pose.position.x, m.pose.pose.position.y)
-               for m in messages]
+    samples = [
+        (m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, m.pose.pose.position.x, m.pose.pose.position.y)
+        for m in messages
+    ]
     speeds = []
     start = 0
     for end in range(len(samples)):
@@ -88,7 +97,7 @@ class PoseWatch:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
-    def __enter__(self) -> "PoseWatch":
+    def __enter__(self) -> PoseWatch:
         self._thread.start()
         return self
 
@@ -110,13 +119,13 @@ class PoseWatch:
 
     def path_length(self, robot: str) -> float:
         samples = self.samples[robot]
-        return sum(math.hypot(x1 - x0, y1 - y0) for (_, x0, y0), (_, x1, y1) in zip(samples, samples[1:]))
+        return sum(math.hypot(x1 - x0, y1 - y0) for (_, x0, y0), (_, x1, y1) in itertools.pairwise(samples))
 
     def largest_jump(self, robot: str) -> float:
         """Largest distance between two consecutive samples, less what the robot could drive."""
         worst = 0.0
         samples = self.samples[robot]
-        for (t0, x0, y0), (t1, x1, y1) in zip(samples, samples[1:]):
+        for (t0, x0, y0), (t1, x1, y1) in itertools.pairwise(samples):
             drivable = 1.0 * max(t1 - t0, 0.0)  # the light model's max_linear_speed is 1 m/s
             worst = max(worst, math.hypot(x1 - x0, y1 - y0) - drivable)
         return worst

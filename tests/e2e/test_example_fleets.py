@@ -23,6 +23,10 @@ def test_every_robot_of_the_example_moves(spec, tmp_path):
         def still():
             return [robot for robot in robots if fleet.pose(robot).distance_to(start[robot]) < 0.2]
 
-        fleet.wait_for(lambda: not still(), sim_timeout=30, what="every robot to move 0.2 m",
-                       explain=lambda: f"not moved: {', '.join(still())}")
+        fleet.wait_for(
+            lambda: not still(),
+            sim_timeout=30,
+            what="every robot to move 0.2 m",
+            explain=lambda: f"not moved: {', '.join(still())}",
+        )
         assert fleet.status().all_running

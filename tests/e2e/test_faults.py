@@ -48,8 +48,11 @@ def fleet(two_agents, spec):
 
 def drives_on(fleet, robot: str, distance: float = 0.3, sim_timeout: float = 10.0) -> None:
     start = fleet.pose(robot)
-    fleet.wait_for(lambda: fleet.pose(robot).distance_to(start) > distance, sim_timeout=sim_timeout,
-                   what=f"{robot} to drive {distance} m")
+    fleet.wait_for(
+        lambda: fleet.pose(robot).distance_to(start) > distance,
+        sim_timeout=sim_timeout,
+        what=f"{robot} to drive {distance} m",
+    )
 
 
 def test_killed_node_is_respawned(fleet):
@@ -66,8 +69,11 @@ def test_killed_agent_restores_its_robots_from_persisted_state(fleet):
     generation = fleet.robot_status("robot2").generation
     fleet.kill_agent("hostB")
     fleet.wait_for(lambda: fleet.robot_status("robot2").state == "offline", timeout=5, what="robot2 shown offline")
-    fleet.wait_for(lambda: not any(psutil.pid_exists(pid) for pid in before["robot2"]), timeout=5,
-                   what="robot2's nodes to die with their agent")
+    fleet.wait_for(
+        lambda: not any(psutil.pid_exists(pid) for pid in before["robot2"]),
+        timeout=5,
+        what="robot2's nodes to die with their agent",
+    )
 
     fleet.start_agent("hostB")  # same state directory, no deploy: it restores what it had accepted
     after = node_pids(fleet.wait_desired_state(timeout=60))
@@ -80,8 +86,11 @@ def test_killed_agent_restores_its_robots_from_persisted_state(fleet):
 
 def test_killed_world_restarts_with_robots_at_their_last_poses(fleet):
     spawn = {robot: Pose(fleet.spec.robot(robot).pose.x, fleet.spec.robot(robot).pose.y, 0.0) for robot in ROBOTS}
-    fleet.wait_for(lambda: all(fleet.pose(r).distance_to(spawn[r]) > 0.5 for r in ROBOTS), sim_timeout=20,
-                   what="both robots 0.5 m away from their spawn poses")
+    fleet.wait_for(
+        lambda: all(fleet.pose(r).distance_to(spawn[r]) > 0.5 for r in ROBOTS),
+        sim_timeout=20,
+        what="both robots 0.5 m away from their spawn poses",
+    )
     robots_before = {robot: fleet.pids(robot) for robot in ROBOTS}
     killed_at = time.time()
     fleet.kill_world()
@@ -89,8 +98,11 @@ def test_killed_world_restarts_with_robots_at_their_last_poses(fleet):
 
     # The respawned world's first status: each robot where the old world left it (it may have
     # driven since, at most 1 m/s times the new world's sim time).
-    first = fleet.wait_for(lambda: (world := fleet.world()) and world["wall_time"] > killed_at and world,
-                           timeout=30, what="a status from the restarted world")
+    first = fleet.wait_for(
+        lambda: (world := fleet.world()) and world["wall_time"] > killed_at and world,
+        timeout=30,
+        what="a status from the restarted world",
+    )
     for robot in ROBOTS:
         pose = first["robots"][robot]["pose"]
         moved = last[robot].distance_to((pose["x"], pose["y"]))
@@ -141,8 +153,11 @@ def test_deploy_while_an_agent_is_down_is_reported_then_completed(fleet):
     # hostB comes back and completes the deploy by itself (it fetches the desired state the router
     # kept for it): no second deploy, and hostA is left alone.
     fleet.start_agent("hostB")
-    fleet.wait_for(lambda: (row := fleet.robot_status("robot2")).state == "running"
-                   and row.generation == outcome.generation, timeout=60, what="robot2 at the deploy's generation")
+    fleet.wait_for(
+        lambda: (row := fleet.robot_status("robot2")).state == "running" and row.generation == outcome.generation,
+        timeout=60,
+        what="robot2 at the deploy's generation",
+    )
     fleet.wait_desired_state()
     assert fleet.robot_status("robot2").generation == outcome.generation
     assert fleet.pids("robot1") == robot1_pids

@@ -20,7 +20,7 @@ from fleet.testing.isolation import with_domain_id
 
 pytestmark = pytest.mark.integration
 
-USER_TEST = '''
+USER_TEST = """
 from pathlib import Path
 
 SPEC = Path(__file__).parent / "fleets" / "safety_stop.yaml"
@@ -29,7 +29,7 @@ SPEC = Path(__file__).parent / "fleets" / "safety_stop.yaml"
 def test_scout_passes_the_crate(fleet_up):
     fleet = fleet_up(SPEC)
     fleet.wait_for(lambda: fleet.pose("scout").x > 3.0, sim_timeout=3, what="scout to pass the crate")
-'''
+"""
 
 
 def test_spec_gets_the_reserved_domain_and_stays_unchanged():
@@ -48,9 +48,24 @@ def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
     basetemp = tmp_path / "basetemp"
 
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
-    done = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist",
-                           f"--basetemp={basetemp}", "test_scout.py"],
-                          cwd=repo, env=env, capture_output=True, text=True, timeout=240)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-p",
+            "no:cacheprovider",
+            "-p",
+            "no:xdist",
+            f"--basetemp={basetemp}",
+            "test_scout.py",
+        ],
+        cwd=repo,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
     output = done.stdout + done.stderr
     assert done.returncode == 1, output
     assert "timed out waiting for scout to pass the crate" in output and "s of sim time (limit 3)" in output

@@ -42,5 +42,8 @@ def test_safety_node_stops_the_robot_before_the_obstacle(fleet_up, tmp_path):
     pids = fleet.pids("scout")
     fleet.deploy(spec_with(SAFETY_STOP, tmp_path, lambda data: data["world"].update(obstacles=[])))
     assert fleet.pids("scout") == pids
-    fleet.wait_for(lambda: fleet.pose("scout").distance_to((4.0, 0.0)) < 0.3, sim_timeout=20,
-                   what="scout to reach its waypoint once the crate is gone")
+    fleet.wait_for(
+        lambda: fleet.pose("scout").distance_to((4.0, 0.0)) < 0.3,
+        sim_timeout=20,
+        what="scout to reach its waypoint once the crate is gone",
+    )

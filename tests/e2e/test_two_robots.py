@@ -40,9 +40,12 @@ def test_both_robots_patrol_their_waypoints_on_sim_time(fleet):
     contacts_before = fleet.contact_count()
 
     # Every waypoint of each route, in order (robot1's 8 m lap at 0.4 m/s takes ~25 s of sim time).
-    fleet.wait_for(lambda: all([route.update() >= len(route.points) for route in routes.values()]),
-                   sim_timeout=45, what="robot1 and robot2 to reach each of their waypoints in order",
-                   explain=lambda: ", ".join(f"{r}: reached {p.reached}, next {p.next}" for r, p in routes.items()))
+    fleet.wait_for(
+        lambda: all([route.update() >= len(route.points) for route in routes.values()]),
+        sim_timeout=45,
+        what="robot1 and robot2 to reach each of their waypoints in order",
+        explain=lambda: ", ".join(f"{r}: reached {p.reached}, next {p.next}" for r, p in routes.items()),
+    )
 
     # Their clocks are the world's: odometry is stamped with sim time, not the wall clock.
     stamp = odom.last.header.stamp.sec + odom.last.header.stamp.nanosec * 1e-9
@@ -55,8 +58,12 @@ def test_each_robot_has_its_own_topics(fleet):
     from nav_msgs.msg import Odometry
 
     expected = {fleet.topic(robot, topic) for robot in ROBOTS for topic in TOPICS}
-    fleet.wait_for(lambda: expected <= set(fleet.ros.topics()), timeout=20, what="every robot topic in the ROS graph",
-                   explain=lambda: f"seen {sorted(fleet.ros.topics())}")
+    fleet.wait_for(
+        lambda: expected <= set(fleet.ros.topics()),
+        timeout=20,
+        what="every robot topic in the ROS graph",
+        explain=lambda: f"seen {sorted(fleet.ros.topics())}",
+    )
     assert not {"/cmd_vel", "/odom", "/scan", "/battery"} & set(fleet.ros.topics())
 
     # Every node on a robot's topics belongs to that robot, or is the world (which serves them all).
@@ -78,7 +85,9 @@ def test_each_robot_has_its_own_topics(fleet):
 
     # Each robot's odometry is its own: frames named after it, and positions matching its world pose.
     odom = {robot: fleet.subscribe(robot, "odom", Odometry) for robot in ROBOTS}
-    fleet.wait_for(lambda: all(odom[robot].count >= 5 for robot in ROBOTS), sim_timeout=5, what="odometry of both robots")
+    fleet.wait_for(
+        lambda: all(odom[robot].count >= 5 for robot in ROBOTS), sim_timeout=5, what="odometry of both robots"
+    )
     for robot in ROBOTS:
         message = odom[robot].last
         assert (message.header.frame_id, message.child_frame_id) == (f"{robot}/odom", f"{robot}/base_link")
@@ -93,8 +102,12 @@ def test_each_robot_has_its_own_topics(fleet):
         fleet.publish("robot1", "cmd_vel_nav", ours)
         return any(abs(m.linear.x - 0.123) < 1e-6 for m in seen["robot1"].messages) and seen["robot2"].count >= 10
 
-    fleet.wait_for(relayed, sim_timeout=10, what="our command relayed to /robot1/cmd_vel",
-                   explain=lambda: f"{seen['robot1'].count} on robot1, {seen['robot2'].count} on robot2")
+    fleet.wait_for(
+        relayed,
+        sim_timeout=10,
+        what="our command relayed to /robot1/cmd_vel",
+        explain=lambda: f"{seen['robot1'].count} on robot1, {seen['robot2'].count} on robot2",
+    )
     assert not any(abs(m.linear.x - 0.123) < 1e-6 for m in seen["robot2"].messages)
     # Each robot's parameters are its own, and checked: an out-of-range value is refused.
     accepted, reason = fleet.set_param("robot2", "safety", "safety_distance", 99.0)
@@ -121,9 +134,12 @@ def test_robot2_drives_at_its_overridden_max_speed(fleet):
     def top_speed(robot: str) -> float:
         return max(odom_speeds(odom[robot].messages), default=0.0)
 
-    fleet.wait_for(lambda: top_speed("robot1") > 0.36 and top_speed("robot2") > 0.72, sim_timeout=20,
-                   what="robot1 to reach ~0.4 m/s and robot2 ~0.8 m/s",
-                   explain=lambda: f"top speeds robot1 {top_speed('robot1'):.2f}, robot2 {top_speed('robot2'):.2f} m/s")
+    fleet.wait_for(
+        lambda: top_speed("robot1") > 0.36 and top_speed("robot2") > 0.72,
+        sim_timeout=20,
+        what="robot1 to reach ~0.4 m/s and robot2 ~0.8 m/s",
+        explain=lambda: f"top speeds robot1 {top_speed('robot1'):.2f}, robot2 {top_speed('robot2'):.2f} m/s",
+    )
     fleet.wait_sim(5.0)  # more legs of each route, for the upper bounds
     assert top_speed("robot1") < 0.45, top_speed("robot1")
     assert top_speed("robot2") < 0.88, top_speed("robot2")
@@ -141,10 +157,12 @@ def test_battery_drains_and_robot_stops_at_the_critical_level(fleet):
     assert fleet.get_param("robot1", "battery", "capacity") == 0.02
 
     battery = fleet.subscribe("robot1", "battery", BatteryState)
-    fleet.wait_for(lambda: battery.last is not None
-                   and battery.last.power_supply_health == BatteryState.POWER_SUPPLY_HEALTH_DEAD,
-                   sim_timeout=30, what="robot1's battery to report DEAD",
-                   explain=lambda: f"levels {[round(m.percentage, 3) for m in battery.messages]}")
+    fleet.wait_for(
+        lambda: battery.last is not None and battery.last.power_supply_health == BatteryState.POWER_SUPPLY_HEALTH_DEAD,
+        sim_timeout=30,
+        what="robot1's battery to report DEAD",
+        explain=lambda: f"levels {[round(m.percentage, 3) for m in battery.messages]}",
+    )
     levels = [m.percentage for m in battery.messages]
     assert levels == sorted(levels, reverse=True) and levels[-1] <= 0.05 < levels[0], levels
 
@@ -157,8 +175,13 @@ def test_battery_drains_and_robot_stops_at_the_critical_level(fleet):
 
 def test_robot_added_by_redeploy_joins_and_patrols(fleet, tmp_path):
     def add_robot3(data):
-        data["robots"].append({"name": "robot3", "pose": {"x": 5.0, "y": 0.5, "yaw": 0.0},
-                               "parameters": {"controller": {"waypoints": [0.5, 0.0, 0.5, 2.0, 0.0, 2.0, 0.0, 0.0]}}})
+        data["robots"].append(
+            {
+                "name": "robot3",
+                "pose": {"x": 5.0, "y": 0.5, "yaw": 0.0},
+                "parameters": {"controller": {"waypoints": [0.5, 0.0, 0.5, 2.0, 0.0, 2.0, 0.0, 0.0]}},
+            }
+        )
 
     changed = spec_with(TWO_ROBOTS, tmp_path, add_robot3)
     before = node_pids(fleet.status())
@@ -184,9 +207,12 @@ def test_long_patrol_three_laps_without_touching(fleet):
     drain slowly (50 Wh), nobody restarts."""
     before = node_pids(fleet.status())
     routes = {robot: RouteProgress(fleet, robot) for robot in ROBOTS}
-    fleet.wait_for(lambda: all([route.update() >= 3 * len(route.points) for route in routes.values()]),
-                   sim_timeout=120, what="three laps of each robot",
-                   explain=lambda: ", ".join(f"{r}: reached {len(p.reached)}" for r, p in routes.items()))
+    fleet.wait_for(
+        lambda: all([route.update() >= 3 * len(route.points) for route in routes.values()]),
+        sim_timeout=120,
+        what="three laps of each robot",
+        explain=lambda: ", ".join(f"{r}: reached {len(p.reached)}" for r, p in routes.items()),
+    )
     assert not [c for c in fleet.contacts() if {c["a"], c["b"]} == set(ROBOTS)]
     assert all(0.5 < fleet.battery(robot) < 1.0 for robot in ROBOTS)
     assert node_pids(fleet.status()) == before

@@ -25,7 +25,16 @@ rclpy.shutdown()
 
 
 def probe(ros_env, namespace: str, name: str, params_files: list) -> dict:
-    command = [sys.executable, "-c", PRINT_PARAMETERS, "--ros-args", "-r", f"__ns:={namespace}", "-r", f"__node:={name}"]
+    command = [
+        sys.executable,
+        "-c",
+        PRINT_PARAMETERS,
+        "--ros-args",
+        "-r",
+        f"__ns:={namespace}",
+        "-r",
+        f"__node:={name}",
+    ]
     for path in params_files:
         command += ["--params-file", str(path)]
     result = subprocess.run(command, env=ros_env, capture_output=True, text=True, timeout=60)
@@ -36,8 +45,12 @@ def probe(ros_env, namespace: str, name: str, params_files: list) -> dict:
 @pytest.mark.integration
 def test_each_robot_node_sees_its_own_section(tmp_path, ros_env):
     out = tmp_path / "out"
-    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "-o", str(out),
-                      "--set", "robot1.safety.safety_distance=0.3"]) == 0
+    assert (
+        run_fleet(
+            ["render", str(FLEETS / "two_robots.yaml"), "-o", str(out), "--set", "robot1.safety.safety_distance=0.3"]
+        )
+        == 0
+    )
     robot1 = out / "robot1" / "robot1.params.yaml"
     robot2 = out / "robot2" / "robot2.params.yaml"
     # Both files on each command line, the other robot's last: only the fully-qualified section

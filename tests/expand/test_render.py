@@ -10,7 +10,6 @@ import yaml
 
 from fleet.expand import expand_fleet
 from fleet.spec import parse_spec
-
 from tests.conftest import FLEETS, run_fleet
 
 
@@ -24,7 +23,7 @@ def launch_nodes(actions: list, namespace: str = "/") -> list[tuple[str, dict]]:
     """(pushed namespace, node body) for every node in a parsed YAML launch document."""
     found = []
     for action in actions:
-        (kind, body), = action.items()
+        ((kind, body),) = action.items()
         if kind == "push_ros_namespace":
             namespace = body["namespace"]
         elif kind == "group":
@@ -47,7 +46,7 @@ def test_two_robots_yaml_launch_structure(tmp_path):
             assert body["pkg"] == "fleet_nodes" and body["exec"] == body["name"]
             assert {"from": f"$(dirname)/{robot}.params.yaml"} in body["param"]
     world = yaml.safe_load((out / "world" / "world.launch.yaml").read_text())
-    (_, body), = launch_nodes(world["launch"])
+    ((_, body),) = launch_nodes(world["launch"])
     assert body["exec"] == "world" and "$(dirname)/world.yaml" in body["args"]
 
 
@@ -89,7 +88,8 @@ def test_params_file_sections_and_override_order(tmp_path):
 
 
 def test_layers_precedence_and_explain(tmp_path):
-    spec = parse_spec(textwrap.dedent("""\
+    spec = parse_spec(
+        textwrap.dedent("""\
         fleet: demo
         defaults:
           parameters: {controller: {max_speed: 0.3, goal_tolerance: 0.2}}
@@ -97,7 +97,9 @@ def test_layers_precedence_and_explain(tmp_path):
           - name: a
             parameters: {controller: {max_speed: 0.6, waypoints: [1, 0, 2, 0]}}
           - name: b
-        """), "demo.yaml")
+        """),
+        "demo.yaml",
+    )
     expansion = expand_fleet(spec, ["a.controller.goal_tolerance=0.05", "b.controller.loop=false"])
     a = expansion.robot("a").parameters
     b = expansion.robot("b").parameters
@@ -112,8 +114,20 @@ def test_layers_precedence_and_explain(tmp_path):
 
 
 def test_explain_cli(tmp_path, capsys):
-    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "--explain", "robot2.controller.max_speed",
-                      "--set", "robot2.controller.max_speed=1.2", "--json"]) == 0
+    assert (
+        run_fleet(
+            [
+                "render",
+                str(FLEETS / "two_robots.yaml"),
+                "--explain",
+                "robot2.controller.max_speed",
+                "--set",
+                "robot2.controller.max_speed=1.2",
+                "--json",
+            ]
+        )
+        == 0
+    )
     import json
 
     data = json.loads(capsys.readouterr().out)
@@ -161,8 +175,13 @@ def test_hostile_values_stay_inert(tmp_path):
     spec_path = tmp_path / "hostile.yaml"
     robots = []
     for index, value in enumerate(HOSTILE):
-        robots.append({"name": f"r{index}", "launch_args": {"log_level": value},
-                       "parameters": {"controller": {"waypoints": [1.0, 0.0]}, "battery": {"label": value}}})
+        robots.append(
+            {
+                "name": f"r{index}",
+                "launch_args": {"log_level": value},
+                "parameters": {"controller": {"waypoints": [1.0, 0.0]}, "battery": {"label": value}},
+            }
+        )
     spec_path.write_text(yaml.safe_dump({"fleet": "hostile", "robots": robots}))
     out = render_to(tmp_path, spec_path)
     for index, value in enumerate(HOSTILE):
@@ -175,9 +194,18 @@ def test_hostile_values_stay_inert(tmp_path):
         source = (out / robot / f"{robot}.launch.py").read_text()
         tree = ast.parse(source)
         called = {c.func.id for c in _calls(tree) if isinstance(c.func, ast.Name)}
-        assert called <= {"LaunchDescription", "DeclareLaunchArgument", "GroupAction", "PushRosNamespace",
-                          "SetEnvironmentVariable", "SetLaunchConfiguration", "Node", "IfCondition",
-                          "LaunchConfiguration", "ThisLaunchFileDir"}
+        assert called <= {
+            "LaunchDescription",
+            "DeclareLaunchArgument",
+            "GroupAction",
+            "PushRosNamespace",
+            "SetEnvironmentVariable",
+            "SetLaunchConfiguration",
+            "Node",
+            "IfCondition",
+            "LaunchConfiguration",
+            "ThisLaunchFileDir",
+        }
         assert not [c for c in _calls(tree) if isinstance(c.func, ast.Attribute)]
         constants = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant)}
         assert value in constants
@@ -210,29 +238,50 @@ def test_hostile_robot_names_are_rejected():
 def test_params_emitter_round_trips_through_yaml():
     from fleet.expand import yaml_emit
 
-    tree = {"/r1/controller": {"ros__parameters": {
-        "f": 1e-05, "g": 2.0, "h": -3.5e20, "i": 7, "b": True, "s": "a: b\n- c \"q\" \u2028", "e": "",
-        "yes_string": "yes", "num_string": "1.5", "lf": [1.0, 2.5], "ls": ["x", "true", "On", "null", "/a/b", "0x1f", "1_000", "a b"], "lb": [False],
-        "pid": {"kp": 1.5, "inner": {"x": 1}}, "inf": float("inf")}}}
+    tree = {
+        "/r1/controller": {
+            "ros__parameters": {
+                "f": 1e-05,
+                "g": 2.0,
+                "h": -3.5e20,
+                "i": 7,
+                "b": True,
+                "s": 'a: b\n- c "q" \u2028',
+                "e": "",
+                "yes_string": "yes",
+                "num_string": "1.5",
+                "lf": [1.0, 2.5],
+                "ls": ["x", "true", "On", "null", "/a/b", "0x1f", "1_000", "a b"],
+                "lb": [False],
+                "pid": {"kp": 1.5, "inner": {"x": 1}},
+                "inf": float("inf"),
+            }
+        }
+    }
     text = yaml_emit.emit(tree)
     assert yaml.safe_load(text) == tree
-    world = {"obstacles": [{"name": "a", "position": [1.0, 2.0]}, {"name": "b", "size": [1.0, 1.0, 1.0]}],
-             "robots": [{"name": "r1", "model": {"type": "light"}, "pose": {"x": 0.0}}], "empty": {}}
+    world = {
+        "obstacles": [{"name": "a", "position": [1.0, 2.0]}, {"name": "b", "size": [1.0, 1.0, 1.0]}],
+        "robots": [{"name": "r1", "model": {"type": "light"}, "pose": {"x": 0.0}}],
+        "empty": {},
+    }
     assert yaml.safe_load(yaml_emit.emit(world)) == world
 
 
 def test_shape_cache_matches_full_render(tmp_path):
     """Robots reusing a parsed template shape get exactly what a full parse would give."""
-    from fleet.expand.rendered_launch import LaunchRenderer, _NAME
-    from fleet.expand.templating import TemplateSet, builtin_template_dirs
     from fleet.errors import Location
+    from fleet.expand.rendered_launch import _NAME, LaunchRenderer
+    from fleet.expand.templating import TemplateSet, builtin_template_dirs
 
     renderer = LaunchRenderer(TemplateSet(builtin_template_dirs()), "f")
     results = {}
     for name in ("a", "b"):
-        context = {"robot": {"name": name, "namespace": f"/site/{name}", "agent": "local", "model": {}, "pose": {}},
-                   "fleet": {"name": "f", "domain_id": 0, "use_sim_time": True},
-                   "params_file": f"$(dirname)/{name}.params.yaml"}
+        context = {
+            "robot": {"name": name, "namespace": f"/site/{name}", "agent": "local", "model": {}, "pose": {}},
+            "fleet": {"name": "f", "domain_id": 0, "use_sim_time": True},
+            "params_file": f"$(dirname)/{name}.params.yaml",
+        }
         cached = renderer.render("diff_drive", context, {}, Location("x"))
         full = renderer._parse("diff_drive", context, {}, Location("x"), name)
         assert cached == full
@@ -247,8 +296,19 @@ def test_deploy_dry_run_sends_nothing(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setenv("FLEET_CONNECT", "tcp/127.0.0.1:9")  # would fail at once if it tried
     monkeypatch.setenv("FLEET_STATE_DIR", str(tmp_path / "state"))
-    assert run_fleet(["deploy", str(FLEETS / "two_robots.yaml"), "--dry-run", "--json",
-                      "--set", "robot1.controller.max_speed=0.7"]) == 0
+    assert (
+        run_fleet(
+            [
+                "deploy",
+                str(FLEETS / "two_robots.yaml"),
+                "--dry-run",
+                "--json",
+                "--set",
+                "robot1.controller.max_speed=0.7",
+            ]
+        )
+        == 0
+    )
     data = json.loads(capsys.readouterr().out)
     assert data["robots"][0]["parameters"]["controller"]["max_speed"] == {"value": 0.7, "from": "--set"}
     assert not (tmp_path / "state").exists()

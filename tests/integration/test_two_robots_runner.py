@@ -36,17 +36,35 @@ def probe(ros_env):
 def clear_scan():
     from sensor_msgs.msg import LaserScan
 
-    return LaserScan(angle_min=-math.pi, angle_max=math.pi, angle_increment=2 * math.pi / 360,
-                     range_min=0.1, range_max=8.0, ranges=[math.inf] * 360)
+    return LaserScan(
+        angle_min=-math.pi,
+        angle_max=math.pi,
+        angle_increment=2 * math.pi / 360,
+        range_min=0.1,
+        range_max=8.0,
+        ranges=[math.inf] * 360,
+    )
 
 
 def test_two_robots_run_namespaced_with_their_own_parameters(rendered, ros_env, probe, tmp_path):
     from geometry_msgs.msg import Twist
 
-    robot1 = LaunchSession(rendered / "robot1" / "robot1.launch.yaml", {}, env=ros_env, log_dir=tmp_path / "logs1",
-                           isolation="process", backend="embedded")
-    robot2 = LaunchSession(rendered / "robot2" / "robot2.launch.yaml", {}, env=ros_env, log_dir=tmp_path / "logs2",
-                           isolation="robot", backend="embedded")
+    robot1 = LaunchSession(
+        rendered / "robot1" / "robot1.launch.yaml",
+        {},
+        env=ros_env,
+        log_dir=tmp_path / "logs1",
+        isolation="process",
+        backend="embedded",
+    )
+    robot2 = LaunchSession(
+        rendered / "robot2" / "robot2.launch.yaml",
+        {},
+        env=ros_env,
+        log_dir=tmp_path / "logs2",
+        isolation="robot",
+        backend="embedded",
+    )
     with robot1, robot2:
         probe.wait_for_nodes(NODES, timeout=60)
         topics = probe.topics()
@@ -58,7 +76,16 @@ def test_two_robots_run_namespaced_with_their_own_parameters(rendered, ros_env, 
         # Each node holds its own robot's effective parameters (fleet defaults 0.4, robot2's override 0.8).
         assert probe.get_parameters("/robot1/controller", ["max_speed", "use_sim_time"]) == [0.4, True]
         assert probe.get_parameters("/robot2/controller", ["max_speed"]) == [0.8]
-        assert probe.get_parameters("/robot2/controller", ["waypoints"])[0] == [0.0, 2.0, -1.0, 2.0, -1.0, 0.0, 0.0, 0.0]
+        assert probe.get_parameters("/robot2/controller", ["waypoints"])[0] == [
+            0.0,
+            2.0,
+            -1.0,
+            2.0,
+            -1.0,
+            0.0,
+            0.0,
+            0.0,
+        ]
         assert probe.get_parameters("/robot1/battery", ["capacity"]) == [50.0]
 
         # A live change outside the declared range is refused with a reason; a valid one is taken.
@@ -91,6 +118,7 @@ def test_two_robots_run_namespaced_with_their_own_parameters(rendered, ros_env, 
             return now if now.restarts == 1 and now.state == "running" and now.pid != battery.pid else None
 
         after = probe.wait_until(respawned, timeout=30, what="the battery node to be respawned")
+
         def serves_parameters() -> bool:
             try:  # discovery may still list the killed process's service for a moment
                 return probe.get_parameters("/robot1/battery", ["capacity"], timeout=5) == [50.0]

@@ -32,26 +32,48 @@ PORT = 7447  # each computer is its own network namespace: the default port is f
 SPEC = {
     "fleet": "lan",
     "ros": {"domain_id": 0, "use_sim_time": True},
-    "world": {"agent": "sim_host", "physics_rate": 240, "real_time": True,
-              "obstacles": [{"name": "wall_south", "type": "wall", "position": [2.0, -4.0], "size": [12.0, 0.2, 0.5]}]},
+    "world": {
+        "agent": "sim_host",
+        "physics_rate": 240,
+        "real_time": True,
+        "obstacles": [{"name": "wall_south", "type": "wall", "position": [2.0, -4.0], "size": [12.0, 0.2, 0.5]}],
+    },
     "agents": {"sim_host": {}, "rack_a": {}, "rack_b": {}},
-    "defaults": {"template": "diff_drive", "agent": "rack_a", "isolation": "robot",
-                 "model": {"type": "light", "radius": 0.2},
-                 "parameters": {"controller": {"max_speed": 0.4}, "battery": {"capacity": 50.0}}},
+    "defaults": {
+        "template": "diff_drive",
+        "agent": "rack_a",
+        "isolation": "robot",
+        "model": {"type": "light", "radius": 0.2},
+        "parameters": {"controller": {"max_speed": 0.4}, "battery": {"capacity": 50.0}},
+    },
     "robots": [
         # a1 (rack_a) and b1 (rack_b) drive head-on: a1's safety node stops it on its lidar, b1
         # has no safety node and bumps into it.
-        {"name": "a1", "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
-         "parameters": {"controller": {"waypoints": [3.0, 0.0], "loop": False}}},
-        {"name": "b1", "agent": "rack_b", "pose": {"x": 3.0, "y": 0.0, "yaw": 3.1416},
-         "launch_args": {"enable_safety": False},
-         "parameters": {"controller": {"waypoints": [3.0, 0.0], "loop": False}}},
-        {"name": "a2", "pose": {"x": -2.0, "y": 3.0, "yaw": 0.0},
-         "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]}}},
-        {"name": "b2", "agent": "rack_b", "pose": {"x": 5.0, "y": 3.0, "yaw": 0.0},
-         "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]}}},
+        {
+            "name": "a1",
+            "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
+            "parameters": {"controller": {"waypoints": [3.0, 0.0], "loop": False}},
+        },
+        {
+            "name": "b1",
+            "agent": "rack_b",
+            "pose": {"x": 3.0, "y": 0.0, "yaw": 3.1416},
+            "launch_args": {"enable_safety": False},
+            "parameters": {"controller": {"waypoints": [3.0, 0.0], "loop": False}},
+        },
+        {
+            "name": "a2",
+            "pose": {"x": -2.0, "y": 3.0, "yaw": 0.0},
+            "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]}},
+        },
+        {
+            "name": "b2",
+            "agent": "rack_b",
+            "pose": {"x": 5.0, "y": 3.0, "yaw": 0.0},
+            "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]}},
+        },
     ],
-}  # fmt: skip
+}
 ROBOTS = ("a1", "a2", "b1", "b2")
 LIST_TOPICS = """
 import time, rclpy
@@ -81,25 +103,46 @@ class Fleet:
         self.transport = "dds"
         self.endpoint = f"tcp/{lan.hosts['sim'].address}:{PORT}"
         self.processes: dict[str, subprocess.Popen] = {}
-        self.env = dict(os.environ, FLEET_STATE_DIR=str(root / "state"), ROS_HOME=str(root / "ros"), PYTHONUNBUFFERED="1")
+        self.env = dict(
+            os.environ, FLEET_STATE_DIR=str(root / "state"), ROS_HOME=str(root / "ros"), PYTHONUNBUFFERED="1"
+        )
         for key in ("FLEET_CONNECT", "FLEET_ZENOH_CONFIG", "ROS_DISCOVERY_SERVER", "ROS_LOG_DIR"):
             self.env.pop(key, None)
 
     def spawn(self, key: str, host: str, *args: str) -> None:
         with open(self.root / f"{key}.log", "ab") as log:
             self.processes[key] = subprocess.Popen(
-                self.lan.hosts[host].command(sys.executable, "-m", "fleet", *args), env=self.env, cwd=self.root,
-                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)  # fmt: skip
+                self.lan.hosts[host].command(sys.executable, "-m", "fleet", *args),
+                env=self.env,
+                cwd=self.root,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+            )
 
     def start(self) -> None:
         self.spawn("router", "sim", "router", "--listen", self.endpoint, "--state-dir", str(self.root / "router"))
         for agent, host in (("sim_host", "sim"), ("rack_a", "rack_a"), ("rack_b", "rack_b")):
-            self.spawn(agent, host, "agent", "--name", agent, "--connect", self.endpoint,
-                       "--state-dir", str(self.root / "agents" / agent))  # fmt: skip
+            self.spawn(
+                agent,
+                host,
+                "agent",
+                "--name",
+                agent,
+                "--connect",
+                self.endpoint,
+                "--state-dir",
+                str(self.root / "agents" / agent),
+            )
 
     def fleet(self, *args: str, timeout: float = 180) -> subprocess.CompletedProcess:
-        return subprocess.run(self.lan.hosts["sim"].command(sys.executable, "-m", "fleet", *args, "--connect", self.endpoint),
-                              env=self.env, capture_output=True, text=True, timeout=timeout)  # fmt: skip
+        return subprocess.run(
+            self.lan.hosts["sim"].command(sys.executable, "-m", "fleet", *args, "--connect", self.endpoint),
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
 
     def status(self) -> dict:
         """`fleet status --json` (it exits 1 when not all runs, and still prints the status)."""
@@ -120,7 +163,9 @@ class Fleet:
                 return last
             time.sleep(0.5)
         states = {name: (row["state"], row.get("reason", "")) for name, row in (last or {}).items()}
-        raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}; robots: {states}\n{self.log_tails()}")
+        raise AssertionError(
+            f"timed out after {timeout:.0f} s waiting for {what}; robots: {states}\n{self.log_tails()}"
+        )
 
     def log_tails(self, lines: int = 15) -> str:
         parts = []
@@ -131,7 +176,7 @@ class Fleet:
 
     def stop(self) -> None:
         agents = [key for key in self.processes if key != "router"]
-        for key in agents + ["router"]:
+        for key in [*agents, "router"]:
             process = self.processes[key]
             if process.poll() is None:
                 process.terminate()
@@ -193,7 +238,9 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     else:  # DDS stays on each computer; every agent bridges what crosses
         assert set(servers) == {"sim_host", "rack_a", "rack_b"}
         assert all(d["server"].startswith("127.0.0.1:") and d["pid"] for d in servers.values())
-        assert set(status["bridges"]["lan"]) == {"sim_host", "rack_a", "rack_b"} and all(status["bridges"]["lan"].values())
+        assert set(status["bridges"]["lan"]) == {"sim_host", "rack_a", "rack_b"} and all(
+            status["bridges"]["lan"].values()
+        )
     assert {row["name"]: row["state"] for row in status["robots"]} == dict.fromkeys(("world", *ROBOTS), "running")
 
     # ROS tools on rack_a, with `fleet ros-env`, see the graph: all of it with dds; with zenoh
@@ -202,16 +249,26 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     exports = fleet.fleet(*args)
     assert exports.returncode == 0 and exports.stdout.startswith("export "), exports.stdout + exports.stderr
     tool_env = dict(pair.split("=", 1) for pair in exports.stdout.split()[1:])
-    graph = subprocess.run(fleet.lan.hosts["rack_a"].command(sys.executable, "-c", LIST_TOPICS),
-                           env={**fleet.env, **tool_env}, capture_output=True, text=True, timeout=60)  # fmt: skip
+    graph = subprocess.run(
+        fleet.lan.hosts["rack_a"].command(sys.executable, "-c", LIST_TOPICS),
+        env={**fleet.env, **tool_env},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert "/a1/odom" in graph.stdout and "/clock" in graph.stdout, graph.stdout + graph.stderr
     assert ("/b1/cmd_vel" in graph.stdout) == (fleet.transport == "dds"), graph.stdout
 
-    # Every robot moves.
+    # Every robot moves.  a1 and b1 may have met and stopped by now (the checks above take
+    # seconds): they are measured from where they were spawned.
+    spawned = {robot["name"]: (robot["pose"]["x"], robot["pose"]["y"]) for robot in SPEC["robots"]}
     before = poses(fleet.robots())
-    after = fleet.wait(lambda robots: all(moved(before, poses(robots), name) for name in ("a2", "b2")), 30,
-                       "the patrolling robots on both racks to move")
-    assert all(moved(before, poses(after), name, 0.1) for name in ("a1", "b1"))
+    after = fleet.wait(
+        lambda robots: all(moved(before, poses(robots), name) for name in ("a2", "b2")),
+        30,
+        "the patrolling robots on both racks to move",
+    )
+    assert all(moved(spawned, poses(after), name, 0.1) for name in ("a1", "b1")), poses(after)
 
     # a1 (rack_a) sees b1 (rack_b) on its lidar and its safety node stops it; b1 bumps into a1.
     def met(robots):
@@ -232,29 +289,43 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     world_pid = next(node["pid"] for row in fleet.status()["robots"] if row["name"] == "world" for node in row["nodes"])
     os.kill(world_pid, signal.SIGSTOP)
     try:
-        frozen = fleet.wait(lambda robots: all(robots.get(name, {}).get("state") == "degraded" for name in ROBOTS), 15,
-                            "every robot degraded while the world is frozen")
+        frozen = fleet.wait(
+            lambda robots: all(robots.get(name, {}).get("state") == "degraded" for name in ROBOTS),
+            15,
+            "every robot degraded while the world is frozen",
+        )
         assert all("/clock" in frozen[name]["reason"] for name in ROBOTS), frozen
         table = fleet.fleet("status")
         assert table.returncode != 0 and "degraded" in table.stdout and "/clock" in table.stdout, table.stdout
         # A deploy meanwhile does not say "fleet up": it names who is not running and why.
-        deploy = fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--set", "a2.controller.max_speed=0.3", "--timeout", "8")
+        deploy = fleet.fleet(
+            "deploy", str(tmp_path / "lan.yaml"), "--set", "a2.controller.max_speed=0.3", "--timeout", "8"
+        )
         assert deploy.returncode == 1 and "fleet up" not in deploy.stdout, deploy.stdout
         why = " ".join(deploy.stdout.partition("not running:")[2].split())  # rich wraps long lines
         assert "timed out" in deploy.stdout and "a2 " in why and "/clock" in why, deploy.stdout
     finally:
         os.kill(world_pid, signal.SIGCONT)
-    fleet.wait(lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ROBOTS), 30,
-               "every robot running again once the world runs")
+    fleet.wait(
+        lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ROBOTS),
+        30,
+        "every robot running again once the world runs",
+    )
 
     # A pulled cable: rack_b's robots stop being running, with the reason; back when plugged in.
     fleet.lan.set_link("rack_b", False)
     try:
-        cut = fleet.wait(lambda robots: all(robots.get(name, {}).get("state", "running") != "running" for name in ("b1", "b2")), 15,
-                         "rack_b's robots shown not running while its cable is out")
+        cut = fleet.wait(
+            lambda robots: all(robots.get(name, {}).get("state", "running") != "running" for name in ("b1", "b2")),
+            15,
+            "rack_b's robots shown not running while its cable is out",
+        )
         assert all(cut[name]["reason"] for name in ("b1", "b2")), cut
         assert cut["a2"]["state"] == "running"
     finally:
         fleet.lan.set_link("rack_b", True)
-    fleet.wait(lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ROBOTS), 60,
-               "rack_b's robots running again once its cable is back")
+    fleet.wait(
+        lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ROBOTS),
+        60,
+        "rack_b's robots running again once its cable is back",
+    )

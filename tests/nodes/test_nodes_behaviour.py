@@ -210,9 +210,7 @@ def test_safety_passes_blocks_forward_ignores_behind_and_zeroes_on_scan_timeout(
 
     def gated(scan_msg: LaserScan, cmd: Twist) -> Twist:
         scan_pub.publish(scan_msg)
-        ros.spin_until(
-            lambda: node.last_scan and node.last_scan.header.stamp == scan_msg.header.stamp
-        )
+        ros.spin_until(lambda: node.last_scan and node.last_scan.header.stamp == scan_msg.header.stamp)
         ros.spin_for(0.02)  # let a re-sent command from the new verdict arrive before clearing
         del outs[:]
         cmd_pub.publish(cmd)
@@ -250,9 +248,7 @@ def test_safety_passes_blocks_forward_ignores_behind_and_zeroes_on_scan_timeout(
 def test_composite_applies_a_groups_log_level_to_its_node_only(ros):
     from fleet.nodes.composite import _create
 
-    quiet = _create(
-        "battery", ["--ros-args", "-r", "__ns:=/r1", "--log-level", "error"], context=ros.context
-    )
+    quiet = _create("battery", ["--ros-args", "-r", "__ns:=/r1", "--log-level", "error"], context=ros.context)
     plain = _create("safety", ["--ros-args", "-r", "__ns:=/r1"], context=ros.context)
     ros.nodes += [quiet, plain]
     assert quiet.get_fully_qualified_name() == "/r1/battery"

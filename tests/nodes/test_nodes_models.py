@@ -98,9 +98,7 @@ def test_check_waypoints(flat, ok):
 
 
 def test_battery_drains_with_time_and_faster_with_motion():
-    battery = models.BatteryModel(
-        capacity_wh=1.0, energy_wh=1.0, idle_draw_w=3.6, motion_draw_w_per_mps=7.2
-    )
+    battery = models.BatteryModel(capacity_wh=1.0, energy_wh=1.0, idle_draw_w=3.6, motion_draw_w_per_mps=7.2)
     battery.advance(100.0)  # 3.6 W * 100 s = 0.1 Wh
     assert battery.fraction == pytest.approx(0.9)
     battery.speed = 0.5  # 3.6 W more
@@ -133,9 +131,7 @@ def test_nearest_in_cone_sees_only_the_front():
     # Returns below range_min are noise, not obstacles.
     assert models.nearest_in_cone(_ranges(0.0, 0.05), -math.pi, inc, 0.1, 8.0, 0.6) == math.inf
     # A scan laid out 0..2pi puts "ahead" at its start and end.
-    assert models.nearest_in_cone(
-        [0.3] + [math.inf] * 359, 0.0, inc, 0.1, 8.0, 0.6
-    ) == pytest.approx(0.3)
+    assert models.nearest_in_cone([0.3] + [math.inf] * 359, 0.0, inc, 0.1, 8.0, 0.6) == pytest.approx(0.3)
 
 
 def test_gate_forward_blocks_only_forward_motion():

@@ -64,9 +64,7 @@ def start(ros_env, tmp_path):
     started: list[NodeProcess] = []
 
     def _start(module: str, *args: str) -> NodeProcess:
-        process = NodeProcess(
-            module, list(args), ros_env, tmp_path / f"{module}-{len(started)}.log"
-        )
+        process = NodeProcess(module, list(args), ros_env, tmp_path / f"{module}-{len(started)}.log")
         started.append(process)
         return process
 
@@ -91,10 +89,7 @@ def set_parameter(ros, node: str, name: str, value):
 def get_parameters(ros, node: str, *names: str) -> list:
     client = ros.probe.create_client(GetParameters, f"{node}/get_parameters")
     values = ros.call(client, GetParameters.Request(names=list(names)), timeout=15.0).values
-    plain = [
-        Parameter.from_parameter_msg(_msg(name, v)).value
-        for name, v in zip(names, values, strict=True)
-    ]
+    plain = [Parameter.from_parameter_msg(_msg(name, v)).value for name, v in zip(names, values, strict=True)]
     return [list(v) if hasattr(v, "typecode") else v for v in plain]  # array.array -> list
 
 
@@ -124,9 +119,7 @@ def _msg(name, value):
         ),
     ],
 )
-def test_invalid_parameter_file_exits_non_zero_with_the_reason(
-    start, tmp_path, module, params, reason
-):
+def test_invalid_parameter_file_exits_non_zero_with_the_reason(start, tmp_path, module, params, reason):
     params_file = write(tmp_path / "params.yaml", params)
     node = start(
         module,
@@ -274,10 +267,7 @@ def test_composite_hosts_one_robot_with_per_node_arguments(ros, start, tmp_path)
     assert batteries[-1].power_supply_health == BatteryState.POWER_SUPPLY_HEALTH_GOOD
 
     refused = set_parameter(ros, "/robot1/battery", "low_threshold", 0.01)
-    assert (
-        not refused.successful
-        and "critical_threshold (0.05) must be <= low_threshold (0.01)" in refused.reason
-    )
+    assert not refused.successful and "critical_threshold (0.05) must be <= low_threshold (0.01)" in refused.reason
     started = time.monotonic()
     assert composite.stop(signal.SIGINT) == 0
     assert time.monotonic() - started < 5.0

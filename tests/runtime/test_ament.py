@@ -78,9 +78,7 @@ def test_ament_prefix_path_appends_ours_once():
 
 
 def test_ament_prefix_command_prints_prefix():
-    result = subprocess.run(
-        [sys.executable, "-m", "fleet", "ament-prefix"], capture_output=True, text=True, timeout=60
-    )
+    result = subprocess.run([sys.executable, "-m", "fleet", "ament-prefix"], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == sys.prefix
     assert (ament.default_prefix() / "lib/fleet_nodes/composite").exists()

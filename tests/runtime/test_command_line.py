@@ -87,7 +87,7 @@ def test_controller_matches_design_md(prefix, tmp_path):
     controller = plan.nodes[0]
     exe = str(prefix.root / "lib" / "fleet_nodes" / "controller")
     assert controller.cmd[0] == exe
-    assert _normalise(controller.cmd, tmp_path / 'out' / 'robot1') == f"{exe} --ros-args {DESIGN_VERIFIED}"
+    assert _normalise(controller.cmd, tmp_path / "out" / "robot1") == f"{exe} --ros-args {DESIGN_VERIFIED}"
     inline = yaml.safe_load(Path(controller.cmd[controller.cmd.index("-r", 6) - 1]).read_text())
     assert inline == {"/robot1/controller": {"ros__parameters": {"use_sim_time": True}}}
 
@@ -95,7 +95,7 @@ def test_controller_matches_design_md(prefix, tmp_path):
 def test_general_layout_of_every_node(prefix, tmp_path):
     plan = _robot_plan(prefix, tmp_path)
     lib = prefix.root / "lib" / "fleet_nodes"
-    layouts = [_normalise(node.cmd, tmp_path / 'out' / 'robot1') for node in plan.nodes]
+    layouts = [_normalise(node.cmd, tmp_path / "out" / "robot1") for node in plan.nodes]
     assert layouts == [
         f"{lib}/controller --ros-args {DESIGN_VERIFIED}",
         f"{lib}/battery --ros-args --log-level info --ros-args -r __node:=battery "
@@ -142,5 +142,9 @@ def test_robot_isolation_keeps_other_nodes_alone(prefix, tmp_path):
     assert [spec.name for spec in specs] == ["talker-1", "composite-1", "world-1", "safety-1"]
     assert [node.name for node in specs[1].nodes] == ["c1", "b1"]
     assert [spec.name for spec in plan_processes(plan.nodes, "process")] == [
-        "talker-1", "controller-1", "world-1", "battery-1", "safety-1",
-    ]  # fmt: skip
+        "talker-1",
+        "controller-1",
+        "world-1",
+        "battery-1",
+        "safety-1",
+    ]

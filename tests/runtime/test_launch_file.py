@@ -24,9 +24,7 @@ def load(demo, write_launch, tmp_path):
 
     def run(text: str, env: dict | None = None, **launch_args: str):
         path = write_launch(text)
-        return load_launch_file(
-            path, launch_args, env=env or demo.env(), params_dir=tmp_path / "params"
-        )
+        return load_launch_file(path, launch_args, env=env or demo.env(), params_dir=tmp_path / "params")
 
     return run
 
@@ -66,7 +64,8 @@ def test_minimal_node(load, demo):
 
 def test_full_node_layout(load, demo, tmp_path):
     (tmp_path / "p.yaml").write_text("/ns/talker: {ros__parameters: {a: 1}}\n")
-    plan = load("""
+    plan = load(
+        """
         launch:
         - node:
             pkg: demo
@@ -84,17 +83,34 @@ def test_full_node_layout(load, demo, tmp_path):
             respawn: 'true'
             respawn_delay: 1.5
             output: screen
-    """, v="V")
+    """,
+        v="V",
+    )
     (node,) = plan.nodes
     exe = str(demo.root / "lib/demo/talker")
     inline = node.cmd[node.cmd.index("-r", node.cmd.index(str(tmp_path / "p.yaml"))) - 1]
     assert node.cmd == [
-        exe, "--flag", "two words", "xVy",
-        "--ros-args", "--log-level", "debug",
-        "--ros-args", "-r", "__node:=talker", "-r", "__ns:=/ns",
-        "--params-file", str(tmp_path / "p.yaml"), "--params-file", inline,
-        "-r", "a:=b", "-r", "c:=/d",
-    ]  # fmt: skip
+        exe,
+        "--flag",
+        "two words",
+        "xVy",
+        "--ros-args",
+        "--log-level",
+        "debug",
+        "--ros-args",
+        "-r",
+        "__node:=talker",
+        "-r",
+        "__ns:=/ns",
+        "--params-file",
+        str(tmp_path / "p.yaml"),
+        "--params-file",
+        inline,
+        "-r",
+        "a:=b",
+        "-r",
+        "c:=/d",
+    ]
     assert Path(inline).name.startswith("launch_params_")
     assert Path(inline).parent == tmp_path / "params"
     assert params_of(node)[1] == {"/ns/talker": {"ros__parameters": {"rate": 2.5}}}
@@ -158,10 +174,17 @@ def test_inline_param_values_are_typed_like_launch_ros(load):
     for content in params_of(plan.nodes[0]):
         values.update(content["/n/t"]["ros__parameters"])
     assert values == {
-        "from_var": True, "int_text": 3, "float": 0.5, "bool": False, "text": "hello",
-        "empty": "", "list": [1.0, 2.0], "list_text": [1, 2], "strings": ["a", "b"],
+        "from_var": True,
+        "int_text": 3,
+        "float": 0.5,
+        "bool": False,
+        "text": "hello",
+        "empty": "",
+        "list": [1.0, 2.0],
+        "list_text": [1, 2],
+        "strings": ["a", "b"],
         "dotted.name": 1,
-    }  # fmt: skip
+    }
 
 
 def test_process_names_count_per_executable(load):
@@ -288,9 +311,16 @@ def test_group_inherits_outer_configuration(load):
 
 @pytest.mark.parametrize(
     ("condition", "started"),
-    [("if: 'true'", True), ("if: 'TRUE'", True), ("if: '1'", True), ("if: 'false'", False),
-     ("if: '0'", False), ("unless: 'true'", False), ("unless: 'False'", True)],
-)  # fmt: skip
+    [
+        ("if: 'true'", True),
+        ("if: 'TRUE'", True),
+        ("if: '1'", True),
+        ("if: 'false'", False),
+        ("if: '0'", False),
+        ("unless: 'true'", False),
+        ("unless: 'False'", True),
+    ],
+)
 def test_conditions(load, condition, started):
     plan = load(f"launch:\n- node: {{pkg: demo, exec: talker, {condition}}}\n")
     assert bool(plan.nodes) is started
@@ -336,8 +366,11 @@ def test_env_substitutions(load, demo):
     """
     plan = load(text, env=demo.env(FLEET_X="set"))
     assert plan.nodes[0].name == "set_fallback_file"
-    refused(load, "launch:\n- node: {pkg: demo, exec: talker, name: $(env FLEET_SURELY_UNSET_VAR)}\n",
-            "environment variable 'FLEET_SURELY_UNSET_VAR' is not set")  # fmt: skip
+    refused(
+        load,
+        "launch:\n- node: {pkg: demo, exec: talker, name: $(env FLEET_SURELY_UNSET_VAR)}\n",
+        "environment variable 'FLEET_SURELY_UNSET_VAR' is not set",
+    )
 
 
 def test_dirname_and_find_pkg_share(load, demo, tmp_path):
@@ -349,8 +382,7 @@ def test_dirname_and_find_pkg_share(load, demo, tmp_path):
             args: $(dirname) $(find-pkg-share demo)
     """)
     assert plan.nodes[0].cmd[1:3] == [str(tmp_path), str(demo.root / "share" / "demo")]
-    refused(load, "launch:\n- let: {name: x, value: $(find-pkg-share nopkg)}\n",
-            "package 'nopkg' not found", line=2)  # fmt: skip
+    refused(load, "launch:\n- let: {name: x, value: $(find-pkg-share nopkg)}\n", "package 'nopkg' not found", line=2)
 
 
 def test_nested_and_quoted_substitutions(load):
@@ -380,8 +412,12 @@ def test_parse_substitutions_structure():
 
 
 def test_undefined_var(load):
-    refused(load, "launch:\n- node: {pkg: demo, exec: talker, name: $(var nope)}\n",
-            "launch configuration 'nope' is not defined", line=2)  # fmt: skip
+    refused(
+        load,
+        "launch:\n- node: {pkg: demo, exec: talker, name: $(var nope)}\n",
+        "launch configuration 'nope' is not defined",
+        line=2,
+    )
 
 
 # -- refusals -------------------------------------------------------------------------------
@@ -392,31 +428,48 @@ def test_undefined_var(load):
     [
         ("launch:\n- include: {file: x.launch.yaml}\n", ["unknown action 'include'"], 2),
         ("launch:\n- executable: {cmd: ls}\n", ["unknown action 'executable'"], 2),
-        ("launch:\n- node: {pkg: demo, exec: talker, launch-prefix: gdb}\n",
-         ["unknown key 'launch-prefix' in action 'node'"], 2),
-        ("launch:\n- node:\n    pkg: demo\n    exec: talker\n    env: [{name: a, value: b}]\n",
-         ["unknown key 'env'"], 5),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, launch-prefix: gdb}\n",
+            ["unknown key 'launch-prefix' in action 'node'"],
+            2,
+        ),
+        (
+            "launch:\n- node:\n    pkg: demo\n    exec: talker\n    env: [{name: a, value: b}]\n",
+            ["unknown key 'env'"],
+            5,
+        ),
         ("launch:\n- arg: {name: a, choice: [{value: x}]}\n", ["unknown key 'choice'"], 2),
         ("launch:\n- let: {name: a, value: $(command ls)}\n", ["unknown substitution '$(command)'"], 2),
         ("launch:\n- let: {name: a, value: $(var)}\n", ["'$(var)' takes 1..1 arguments"], 2),
         ("launch:\n- let: {name: a, value: '$(var a'}\n", ["unterminated"], 2),
         ("launch:\n- node: {exec: talker}\n", ["action 'node' needs 'pkg'"], 2),
         ("launch:\n- node: {pkg: demo}\n", ["action 'node' needs 'exec'"], 2),
-        ("launch:\n- node: {pkg: demo, exec: nothere}\n",
-         ["executable 'nothere' of package 'demo' not found"], 2),
+        ("launch:\n- node: {pkg: demo, exec: nothere}\n", ["executable 'nothere' of package 'demo' not found"], 2),
         ("launch:\n- node: {pkg: nopkg, exec: talker}\n", ["package 'nopkg' not found", "searched"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, respawn: true}\n", ["must be a string"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, respawn_delay: 2}\n", ["non-negative float"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, output: own_log}\n", ["'output' must be"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, param: [{name: a}]}\n", ["'param' item"], 2),
-        ("launch:\n- node: {pkg: demo, exec: talker, param: [{from: /no/such/file.yaml}]}\n",
-         ["parameter file '/no/such/file.yaml' not found"], 2),
-        ("launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: {b: 1}}]}\n",
-         ["parameter value must be"], 2),
-        ("launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: [1, 2.5]}]}\n",
-         ["list items must all have one type"], 2),
-        ("launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: '{b: 1}'}]}\n",
-         ["is not a bool, int, float, string or list"], 2),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, param: [{from: /no/such/file.yaml}]}\n",
+            ["parameter file '/no/such/file.yaml' not found"],
+            2,
+        ),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: {b: 1}}]}\n",
+            ["parameter value must be"],
+            2,
+        ),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: [1, 2.5]}]}\n",
+            ["list items must all have one type"],
+            2,
+        ),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: '{b: 1}'}]}\n",
+            ["is not a bool, int, float, string or list"],
+            2,
+        ),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: a}]}\n", ["'remap' item"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: x}\n", ["list of mappings"], 2),
         ("launch:\n- group: {scoped: 'maybe', children: []}\n", ["'scoped' must be"], 2),
@@ -433,13 +486,18 @@ def test_refusals(load, text, fragments, line):
 
 
 def test_refusal_in_a_skipped_branch_still_refused(load):
-    refused(load, """
+    refused(
+        load,
+        """
         launch:
         - group:
             if: 'false'
             children:
             - timer: {period: 1.0}
-    """, "unknown action 'timer'", line=5)  # fmt: skip
+    """,
+        "unknown action 'timer'",
+        line=5,
+    )
 
 
 def test_non_yaml_launch_file_refused(demo, tmp_path):
@@ -455,8 +513,9 @@ def test_missing_file(demo, tmp_path):
 
 
 def test_check_writes_nothing(demo, write_launch, tmp_path):
-    path = write_launch("launch:\n- node: {pkg: demo, exec: talker, name: t, namespace: n, "
-                        "param: [{name: a, value: 1}]}\n")  # fmt: skip
+    path = write_launch(
+        "launch:\n- node: {pkg: demo, exec: talker, name: t, namespace: n, param: [{name: a, value: 1}]}\n"
+    )
     before = set(tmp_path.rglob("*"))
     assert check_launch_file(path, env=demo.env()) == {}
     assert set(tmp_path.rglob("*")) == before

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import pytest
 
 from fleet.runtime.supervisor import LaunchSession
@@ -53,8 +52,9 @@ def test_namespaced_fleet_nodes_with_parameters(ros_env, probe, tmp_path, isolat
     (tmp_path / "robot1.params.yaml").write_text(PARAMS)
     path = tmp_path / "robot1.launch.yaml"
     path.write_text(LAUNCH)
-    session = LaunchSession(path, {"speed": "1.25"}, env=ros_env, log_dir=tmp_path / "logs",
-                            isolation=isolation, backend="embedded")  # fmt: skip
+    session = LaunchSession(
+        path, {"speed": "1.25"}, env=ros_env, log_dir=tmp_path / "logs", isolation=isolation, backend="embedded"
+    )
     with session:
         probe.wait_for_nodes(EXPECTED_NODES)
         statuses = session.status()

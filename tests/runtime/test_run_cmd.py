@@ -7,7 +7,6 @@ import subprocess
 import sys
 
 import pytest
-
 from runtime_helpers import pid_alive, wait_for
 
 

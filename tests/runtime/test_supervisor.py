@@ -11,13 +11,12 @@ import textwrap
 import time
 
 import pytest
+from runtime_helpers import pid_alive, wait_for
 
 from fleet.errors import FleetError, LaunchFileError
 from fleet.runtime import supervisor
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession, backoff_delay
-
-from runtime_helpers import pid_alive, wait_for
 
 CHATTY = """\
 #!/bin/sh
@@ -38,19 +37,20 @@ PARENT = "#!/bin/sh\nsleep 100 &\necho child $!\nwait\n"
 def session_for(prefix, write_launch, tmp_path, nodes: str, **kwargs) -> LaunchSession:
     path = write_launch("launch:\n" + textwrap.dedent(nodes).lstrip())
     kwargs.setdefault("stop_timeouts", (1.0, 1.0))
-    return LaunchSession(path, env=prefix.env(), log_dir=tmp_path / "logs",
-                         backend="embedded", **kwargs)  # fmt: skip
+    return LaunchSession(path, env=prefix.env(), log_dir=tmp_path / "logs", backend="embedded", **kwargs)
 
 
 def test_logs_are_captured_and_tailed(prefix, write_launch, tmp_path):
     prefix.add("chatty", CHATTY)
     screen = []
     session = session_for(
-        prefix, write_launch, tmp_path,
+        prefix,
+        write_launch,
+        tmp_path,
         "- node: {pkg: demo, exec: chatty, name: talk, namespace: r1, output: screen}\n"
         "- node: {pkg: demo, exec: chatty, name: quiet}\n",
         on_line=lambda process, line: screen.append((process, line)),
-    )  # fmt: skip
+    )
     with session:
         wait_for(lambda: "to stderr" in session.tail("talk") and "to stderr" in session.tail("quiet"))
         lines = session.tail("/r1/talk", 100)
@@ -84,8 +84,9 @@ def test_status_fields(prefix, write_launch, tmp_path):
 
 def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
     prefix.add("sleeper", SLEEPER)
-    session = session_for(prefix, write_launch, tmp_path,
-                          "- node: {pkg: demo, exec: sleeper, name: s, respawn: 'true'}\n")  # fmt: skip
+    session = session_for(
+        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: sleeper, name: s, respawn: 'true'}\n"
+    )
     with session:
         first = session.status()[0].pid
         os.kill(first, signal.SIGKILL)
@@ -100,8 +101,9 @@ def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
 
 def test_respawn_waits_respawn_delay(prefix, write_launch, tmp_path):
     prefix.add("quitter", "#!/bin/sh\necho bye\nexit 3\n")
-    session = session_for(prefix, write_launch, tmp_path,
-                          "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 0.5}\n")  # fmt: skip
+    session = session_for(
+        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 0.5}\n"
+    )
     with session:
         wait_for(lambda: session.status()[0].state == "backoff")
         assert session.status()[0].exit_code == 3
@@ -124,8 +126,12 @@ def test_backoff_grows_exponentially():
 def test_exit_without_respawn_is_final(prefix, write_launch, tmp_path):
     prefix.add("ok", "#!/bin/sh\necho done\n")
     prefix.add("bad", "#!/bin/sh\necho broken >&2\nexit 4\n")
-    session = session_for(prefix, write_launch, tmp_path,
-                          "- node: {pkg: demo, exec: ok, name: ok}\n- node: {pkg: demo, exec: bad, name: bad}\n")  # fmt: skip
+    session = session_for(
+        prefix,
+        write_launch,
+        tmp_path,
+        "- node: {pkg: demo, exec: ok, name: ok}\n- node: {pkg: demo, exec: bad, name: bad}\n",
+    )
     with session:
         assert session.wait(timeout=10)
         states = {status.name: (status.state, status.exit_code) for status in session.status()}
@@ -136,8 +142,7 @@ def test_exit_without_respawn_is_final(prefix, write_launch, tmp_path):
 
 def test_stop_sends_sigterm_to_a_child_ignoring_sigint(prefix, write_launch, tmp_path):
     prefix.add("deaf", DEAF_TO_SIGINT)
-    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: deaf}\n",
-                          stop_timeouts=(0.5, 5.0))  # fmt: skip
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: deaf}\n", stop_timeouts=(0.5, 5.0))
     session.start()
     wait_for(lambda: session.tail("deaf-1"))
     began = time.monotonic()
@@ -149,8 +154,9 @@ def test_stop_sends_sigterm_to_a_child_ignoring_sigint(prefix, write_launch, tmp
 
 def test_stop_sends_sigkill_to_a_child_ignoring_sigterm(prefix, write_launch, tmp_path):
     prefix.add("stubborn", STUBBORN)
-    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: stubborn}\n",
-                          stop_timeouts=(0.3, 0.5))  # fmt: skip
+    session = session_for(
+        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: stubborn}\n", stop_timeouts=(0.3, 0.5)
+    )
     session.start()
     wait_for(lambda: session.tail("stubborn-1"))
     pid = session.status()[0].pid
@@ -164,9 +170,13 @@ def test_stop_sends_sigkill_to_a_child_ignoring_sigterm(prefix, write_launch, tm
 
 def test_stop_is_quick_for_well_behaved_nodes(prefix, write_launch, tmp_path):
     prefix.add("sleeper", SLEEPER)
-    session = session_for(prefix, write_launch, tmp_path,
-                          "".join(f"- node: {{pkg: demo, exec: sleeper, name: s{i}}}\n" for i in range(5)),
-                          stop_timeouts=(5.0, 10.0))  # fmt: skip
+    session = session_for(
+        prefix,
+        write_launch,
+        tmp_path,
+        "".join(f"- node: {{pkg: demo, exec: sleeper, name: s{i}}}\n" for i in range(5)),
+        stop_timeouts=(5.0, 10.0),
+    )
     session.start()
     began = time.monotonic()
     session.stop()
@@ -176,8 +186,7 @@ def test_stop_is_quick_for_well_behaved_nodes(prefix, write_launch, tmp_path):
 
 def test_nothing_left_after_stop(prefix, write_launch, tmp_path):
     prefix.add("parent", PARENT)
-    session = session_for(prefix, write_launch, tmp_path,
-                          "- node: {pkg: demo, exec: parent, respawn: 'true'}\n")  # fmt: skip
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent, respawn: 'true'}\n")
     session.start()
     line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
     child = int(line.split()[1])
@@ -223,8 +232,10 @@ def test_no_orphans_when_the_supervisor_is_sigkilled(prefix, write_launch, tmp_p
     """)
     runner = subprocess.Popen(
         [sys.executable, "-c", SUPERVISING_SCRIPT, str(path), str(tmp_path / "logs"), isolation],
-        env=prefix.env(), stdout=subprocess.PIPE, text=True,
-    )  # fmt: skip
+        env=prefix.env(),
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         pids = set(json.loads(runner.stdout.readline()))
         assert len(pids) == (3 if isolation == "process" else 2)
@@ -239,8 +250,7 @@ def test_no_orphans_when_the_supervisor_is_sigkilled(prefix, write_launch, tmp_p
 
 def test_invalid_file_starts_nothing(prefix, write_launch, tmp_path):
     prefix.add("sleeper", SLEEPER)
-    session = session_for(prefix, write_launch, tmp_path,
-                          "- node: {pkg: demo, exec: sleeper}\n- bogus: {}\n")  # fmt: skip
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: sleeper}\n- bogus: {}\n")
     with pytest.raises(LaunchFileError, match="unknown action 'bogus'"):
         session.start()
     assert session.status() == []
@@ -251,13 +261,19 @@ def test_robot_isolation_shares_one_process(prefix, write_launch, tmp_path):
     prefix.add("composite", CHATTY, package="fleet_nodes")
     for exe in ("controller", "battery", "safety"):
         prefix.add(exe, SLEEPER, package="fleet_nodes")
-    session = session_for(prefix, write_launch, tmp_path, """
+    session = session_for(
+        prefix,
+        write_launch,
+        tmp_path,
+        """
         - group:
           - push_ros_namespace: {namespace: robot1}
           - node: {pkg: fleet_nodes, exec: controller, name: controller}
           - node: {pkg: fleet_nodes, exec: battery, name: battery}
           - node: {pkg: fleet_nodes, exec: safety, name: safety}
-    """, isolation="robot")  # fmt: skip
+    """,
+        isolation="robot",
+    )
     with session:
         statuses = session.status()
         assert [status.fqn for status in statuses] == ["/robot1/controller", "/robot1/battery", "/robot1/safety"]
@@ -300,8 +316,9 @@ def fake_ros2(tmp_path):
 def test_ros2_backend_runs_ros2_launch(prefix, write_launch, tmp_path, fake_ros2):
     path = write_launch("launch: [{node: {pkg: demo, exec: anything_ros2_knows}}]\n")
     env = prefix.env(PATH=f"{fake_ros2}:{os.environ['PATH']}")
-    session = LaunchSession(path, {"robot": "r1"}, env=env, log_dir=tmp_path / "logs",
-                            backend="auto", stop_timeouts=(1.0, 1.0))  # fmt: skip
+    session = LaunchSession(
+        path, {"robot": "r1"}, env=env, log_dir=tmp_path / "logs", backend="auto", stop_timeouts=(1.0, 1.0)
+    )
     with session:
         assert session.backend == "ros2"
         (status,) = session.status()
@@ -336,9 +353,12 @@ def test_without_ros2_unsupported_files_are_refused_clearly(prefix, write_launch
 def test_failed_respawn_does_not_take_the_others_down(prefix, write_launch, tmp_path):
     doomed = prefix.add("doomed", SLEEPER)
     prefix.add("sleeper", SLEEPER)
-    session = session_for(prefix, write_launch, tmp_path,
-                          "- node: {pkg: demo, exec: doomed, respawn: 'true', respawn_delay: 0.3}\n"
-                          "- node: {pkg: demo, exec: sleeper}\n")  # fmt: skip
+    session = session_for(
+        prefix,
+        write_launch,
+        tmp_path,
+        "- node: {pkg: demo, exec: doomed, respawn: 'true', respawn_delay: 0.3}\n- node: {pkg: demo, exec: sleeper}\n",
+    )
     with session:
         doomed_pid, other_pid = [status.pid for status in session.status()]
         doomed.unlink()

@@ -33,7 +33,7 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
     spec = tmp_path / "fleet.yaml"
     spec.write_text(textwrap.dedent(spec_text))
     out = tmp_path / "out"
-    code, stdout, stderr = run_cli(["render", str(spec), "-o", str(out), *extra], capsys)
+    code, _stdout, stderr = run_cli(["render", str(spec), "-o", str(out), *extra], capsys)
     assert code == 2, stderr
     assert not out.exists(), "nothing may be written when the input is bad"
     lines = stderr.strip().splitlines()
@@ -42,33 +42,63 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
     return lines[0]
 
 
-@pytest.mark.parametrize("spec_text, expected", [
-    ("fleet: demo\nrobots:\n  - name: robot1\n    pose: {x: 1\n", [":5:", "YAML syntax error"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parmeters: {}\n", [":4:5:", "unknown key 'parmeters'", "did you mean 'parameters'"]),
-    ("fleet: demo\nrobts:\n  - name: robot1\n", [":2:1:", "unknown key 'robts'", "did you mean 'robots'"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    pose: {x: fast}\n", [":4:15:", "pose.x", "valid number", "'fast'"]),
-    ("fleet: demo\nros: {domain_id: seven}\nrobots: [{name: r1}]\n", [":2:", "domain_id", "integer"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n  - name: robot1\n", [":4:11:", "duplicate robot name 'robot1'"]),
-    ("fleet: demo\nrobots:\n  - name: 2robot\n", [":3:11:", "must not start with a digit"]),
-    ("fleet: demo\nrobots:\n  - name: robot-1\n", [":3:11:", "not a valid ROS name"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: /site a/robot1\n", [":4:", "namespace"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: relative\n", [":4:", "absolute namespace"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    agent: hostB\n", [":4:12:", "agent 'hostB' is not declared"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    template: nosuch\n", ["template 'nosuch' not found"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [[1, 2], [3, 4]]}}\n", [":4:", "nested lists"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [1, two]}}\n", [":4:", "mixed-type list"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: null}}\n", [":4:", "null"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [{a: 1}]}}\n", [":4:", "mappings inside lists"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: []}}\n", [":4:", "empty list"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {navigator: {speed: 1.0}}\n", ["no node 'navigator'"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    launch_args: {enable_lasers: true}\n", ["no launch argument 'enable_lasers'"]),
-    ("fleet: demo\nrobots: []\n", [":2:", "at least one robot"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n    model: {type: tank}\n", [":4:", "'light', 'husky' or 'racecar'"]),
-    ("fleet: demo\nworld:\n  obstacles: [{name: a, type: box, position: [0, 0]}]\nrobots: [{name: r1}]\n", [":3:", "needs size"]),
-    ("fleet: demo\nrobots:\n  - name: robot1\n  - name: robot1b\n    namespace: /robot1\n", [":5:", "namespace /robot1 already used"]),
-    ("- just\n- a list\n", [":1:1:", "mapping"]),
-    ("fleet: demo\nfleet: other\nrobots: [{name: r1}]\n", [":2:1:", "duplicate key 'fleet'"]),
-])
+@pytest.mark.parametrize(
+    "spec_text, expected",
+    [
+        ("fleet: demo\nrobots:\n  - name: robot1\n    pose: {x: 1\n", [":5:", "YAML syntax error"]),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    parmeters: {}\n",
+            [":4:5:", "unknown key 'parmeters'", "did you mean 'parameters'"],
+        ),
+        ("fleet: demo\nrobts:\n  - name: robot1\n", [":2:1:", "unknown key 'robts'", "did you mean 'robots'"]),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    pose: {x: fast}\n",
+            [":4:15:", "pose.x", "valid number", "'fast'"],
+        ),
+        ("fleet: demo\nros: {domain_id: seven}\nrobots: [{name: r1}]\n", [":2:", "domain_id", "integer"]),
+        ("fleet: demo\nrobots:\n  - name: robot1\n  - name: robot1\n", [":4:11:", "duplicate robot name 'robot1'"]),
+        ("fleet: demo\nrobots:\n  - name: 2robot\n", [":3:11:", "must not start with a digit"]),
+        ("fleet: demo\nrobots:\n  - name: robot-1\n", [":3:11:", "not a valid ROS name"]),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: /site a/robot1\n", [":4:", "namespace"]),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: relative\n", [":4:", "absolute namespace"]),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    agent: hostB\n", [":4:12:", "agent 'hostB' is not declared"]),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    template: nosuch\n", ["template 'nosuch' not found"]),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [[1, 2], [3, 4]]}}\n",
+            [":4:", "nested lists"],
+        ),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [1, two]}}\n",
+            [":4:", "mixed-type list"],
+        ),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: null}}\n", [":4:", "null"]),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [{a: 1}]}}\n",
+            [":4:", "mappings inside lists"],
+        ),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: []}}\n", [":4:", "empty list"]),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    parameters: {navigator: {speed: 1.0}}\n",
+            ["no node 'navigator'"],
+        ),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n    launch_args: {enable_lasers: true}\n",
+            ["no launch argument 'enable_lasers'"],
+        ),
+        ("fleet: demo\nrobots: []\n", [":2:", "at least one robot"]),
+        ("fleet: demo\nrobots:\n  - name: robot1\n    model: {type: tank}\n", [":4:", "'light', 'husky' or 'racecar'"]),
+        (
+            "fleet: demo\nworld:\n  obstacles: [{name: a, type: box, position: [0, 0]}]\nrobots: [{name: r1}]\n",
+            [":3:", "needs size"],
+        ),
+        (
+            "fleet: demo\nrobots:\n  - name: robot1\n  - name: robot1b\n    namespace: /robot1\n",
+            [":5:", "namespace /robot1 already used"],
+        ),
+        ("- just\n- a list\n", [":1:1:", "mapping"]),
+        ("fleet: demo\nfleet: other\nrobots: [{name: r1}]\n", [":2:1:", "duplicate key 'fleet'"]),
+    ],
+)
 def test_bad_spec(tmp_path, capsys, spec_text, expected):
     line = render_bad(tmp_path, capsys, spec_text)
     assert str(tmp_path / "fleet.yaml") in line
@@ -76,13 +106,16 @@ def test_bad_spec(tmp_path, capsys, spec_text, expected):
         assert fragment in line, line
 
 
-@pytest.mark.parametrize("override, expected", [
-    ("robot9.controller.max_speed=0.8", "no robot 'robot9'"),
-    ("robot1.navigator.max_speed=0.8", "robot robot1 has no node 'navigator'"),
-    ("robot1.controller.max_speed", "expected ROBOT.NODE.PARAMETER=VALUE"),
-    ("robot1.controller.max_speed=[[1]]", "nested lists"),
-    ("robot1.controller.max_speed=fast", "is float in the template layer"),
-])
+@pytest.mark.parametrize(
+    "override, expected",
+    [
+        ("robot9.controller.max_speed=0.8", "no robot 'robot9'"),
+        ("robot1.navigator.max_speed=0.8", "robot robot1 has no node 'navigator'"),
+        ("robot1.controller.max_speed", "expected ROBOT.NODE.PARAMETER=VALUE"),
+        ("robot1.controller.max_speed=[[1]]", "nested lists"),
+        ("robot1.controller.max_speed=fast", "is float in the template layer"),
+    ],
+)
 def test_bad_set(tmp_path, capsys, override, expected):
     line = render_bad(tmp_path, capsys, GOOD, "--set", override)
     assert f"--set {override}" in line
@@ -98,15 +131,26 @@ def write_templates(tmp_path: Path, body: str) -> Path:
 
 def test_template_syntax_error_names_template_line(tmp_path, capsys):
     templates = write_templates(tmp_path, "launch:\n- node: {pkg: a, exec: b, name: c}\n{% if robot.name %}\n")
-    line = render_bad(tmp_path, capsys, f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n")
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
     assert f"{templates / 'custom.launch.yaml.j2'}:3" in line or f"{templates / 'custom.launch.yaml.j2'}:4" in line
     assert "template syntax error" in line
 
 
 def test_template_undefined_variable_names_template_line(tmp_path, capsys):
-    templates = write_templates(tmp_path, "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
-                                          "  - node: {pkg: a, exec: b, name: {{ robot.nickname }}}\n")
-    line = render_bad(tmp_path, capsys, f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n")
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: {{ robot.nickname }}}\n",
+    )
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
     assert f"{templates / 'custom.launch.yaml.j2'}:4:" in line
     assert "nickname" in line
 
@@ -120,8 +164,12 @@ def test_real_process_error_is_one_line_exit_2(tmp_path):
     """The installed command, as a user runs it: no traceback, exit 2, nothing written."""
     spec = tmp_path / "bad.yaml"
     spec.write_text("fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {max_speed: [1, [2]]}}\n")
-    result = subprocess.run([sys.executable, "-m", "fleet", "render", str(spec), "-o", str(tmp_path / "out")],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "fleet", "render", str(spec), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert f"{spec}:4:" in result.stderr and "nested lists" in result.stderr

@@ -43,8 +43,9 @@ def test_reload_adds_refuses_and_removes_robots(files):
         app.run(sim_duration=0.2)
         assert set(app.robots) == {"robot1", "robot2"}
         before = app.physics.robots["robot1"].pose()
-        write(config, BASE + "- {name: robot3, pose: {x: -2.0, y: 0.0}}\n"
-                             "- {name: robot4, pose: {x: 0.1, y: 2.0}}\n")  # robot4 sits in the pillar
+        write(
+            config, BASE + "- {name: robot3, pose: {x: -2.0, y: 0.0}}\n- {name: robot4, pose: {x: 0.1, y: 2.0}}\n"
+        )  # robot4 sits in the pillar
         app.check_reload()
         assert set(app.robots) == {"robot1", "robot2", "robot3"}
         assert app.physics.robots["robot1"].pose() == before  # the others were not disturbed
@@ -118,8 +119,9 @@ def test_command_times_out_in_both_sim_and_wall_time(monkeypatch):
 
     wall = [100.0]
     monkeypatch.setattr(ros_bridge.time, "monotonic", lambda: wall[0])
-    channel = types.SimpleNamespace(spec=RobotSpec("r", "/r", cmd_timeout=0.5),
-                                    command=ros_bridge.Command(0.4, 0.1, wall=100.0, sim=10.0))
+    channel = types.SimpleNamespace(
+        spec=RobotSpec("r", "/r", cmd_timeout=0.5), command=ros_bridge.Command(0.4, 0.1, wall=100.0, sim=10.0)
+    )
     current = ros_bridge.RobotChannel.current_command
     assert current(channel, 10.2) == (0.4, 0.1)
     assert current(channel, 30.0) == (0.4, 0.1)  # far ahead in sim, but only just sent (fast world)

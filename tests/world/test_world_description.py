@@ -48,19 +48,26 @@ def test_wall_is_a_box_and_empty_world_is_fine():
     assert world.obstacles[0].type == "box" and world.robots == ()
 
 
-@pytest.mark.parametrize("text, where, words", [
-    ("robots:\n- name: r1\n  pose: {x: 1, y: oops}\n", ":3:", "'y' must be a number"),
-    ("robots:\n- name: r1\n- name: r1\n", ":3:", "duplicate robot name 'r1'"),
-    ("robots:\n- name: 9lives\n", ":2:", "not a valid name"),
-    ("robots:\n- name: r1\n  model: {type: tank}\n", ":3:", "unknown model type 'tank'"),
-    ("robots:\n- name: r1\n  lidar: {range_min: 5, range_max: 1}\n", ":3:", "range_min must be below range_max"),
-    ("robots:\n- name: r1\n  odom_rate: 0\n", ":3:", "'odom_rate' must be > 0"),
-    ("robots:\n- name: r1\n  colour: red\n", ":3:", "unknown key 'colour'"),
-    ("obstacles:\n- {name: c, type: cylinder, position: [0, 0]}\n", ":2:", "missing 'radius'"),
-    ("obstacles:\n- {name: b, type: box, position: [0], size: [1, 1, 1]}\n", ":2:", "'position' must be a list of 2"),
-    ("robots: [\n", ":", "invalid YAML"),
-    ("physics_rate: -1\n", ":1:", "'physics_rate' must be > 0"),
-])
+@pytest.mark.parametrize(
+    "text, where, words",
+    [
+        ("robots:\n- name: r1\n  pose: {x: 1, y: oops}\n", ":3:", "'y' must be a number"),
+        ("robots:\n- name: r1\n- name: r1\n", ":3:", "duplicate robot name 'r1'"),
+        ("robots:\n- name: 9lives\n", ":2:", "not a valid name"),
+        ("robots:\n- name: r1\n  model: {type: tank}\n", ":3:", "unknown model type 'tank'"),
+        ("robots:\n- name: r1\n  lidar: {range_min: 5, range_max: 1}\n", ":3:", "range_min must be below range_max"),
+        ("robots:\n- name: r1\n  odom_rate: 0\n", ":3:", "'odom_rate' must be > 0"),
+        ("robots:\n- name: r1\n  colour: red\n", ":3:", "unknown key 'colour'"),
+        ("obstacles:\n- {name: c, type: cylinder, position: [0, 0]}\n", ":2:", "missing 'radius'"),
+        (
+            "obstacles:\n- {name: b, type: box, position: [0], size: [1, 1, 1]}\n",
+            ":2:",
+            "'position' must be a list of 2",
+        ),
+        ("robots: [\n", ":", "invalid YAML"),
+        ("physics_rate: -1\n", ":1:", "'physics_rate' must be > 0"),
+    ],
+)
 def test_errors_name_file_line_and_problem(text, where, words):
     with pytest.raises(WorldError) as caught:
         parse_world(text, "w.yaml")

@@ -91,9 +91,20 @@ def world(tmp_path, ros_env):
     log = tmp_path / "world.log"  # a file, not a pipe: a full pipe would block the world
     with open(log, "w") as out:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "fleet.nodes.world", "--config", str(config), "--status-file", str(status),
-             "--as-fast-as-possible"],
-            env=ros_env, stdout=out, stderr=subprocess.STDOUT)
+            [
+                sys.executable,
+                "-m",
+                "fleet.nodes.world",
+                "--config",
+                str(config),
+                "--status-file",
+                str(status),
+                "--as-fast-as-possible",
+            ],
+            env=ros_env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
     listener = Listener()
     try:
         yield config, status, listener, proc
@@ -120,6 +131,7 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
     def robot1_moved():
         ros.drive(-0.5)
         return ros.odom["robot1"].pose.pose.position.x < -0.3
+
     wait_for(robot1_moved, 10, "robot1's odom to advance")
     robot2 = ros.odom["robot2"]
     assert abs(robot2.pose.pose.position.x) < 0.01 and abs(robot2.twist.twist.linear.x) < 1e-3
@@ -131,6 +143,7 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
         ros.drive(0.5)
         status = read_status(status_file)
         return status if status and status["contacts"]["count"] >= 1 else None
+
     status = wait_for(contact_reported, 20, "a contact in the status file")
     first = status["contacts"]["last"][0]
     assert (first["a"], first["b"], first["kind"]) == ("robot1", "robot2", "robot-robot")
@@ -150,8 +163,11 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
     wait_for(lambda: "robot3" in ros.odom, 10, "odom from robot3")
     assert proc.poll() is None
     config.write_text(WORLD.format(extra=""))
-    wait_for(lambda: "robot3" not in (read_status(status_file) or {}).get("robots", {"robot3": 1}), 10,
-             "robot3 to leave the status")
+    wait_for(
+        lambda: "robot3" not in (read_status(status_file) or {}).get("robots", {"robot3": 1}),
+        10,
+        "robot3 to leave the status",
+    )
     wait_for(lambda: ros.node.count_publishers("/robot3/odom") == 0, 10, "robot3's publishers to go away")
     assert set(read_status(status_file)["robots"]) == {"robot1", "robot2"}
     assert read_status(status_file)["errors"] == []
@@ -160,8 +176,13 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
 def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env):
     config = tmp_path / "world.yaml"
     config.write_text("robots:\n- {name: robot1, model: {type: tank}}\n")
-    done = subprocess.run([sys.executable, "-m", "fleet.nodes.world", "--config", str(config)],
-                          env=ros_env, capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [sys.executable, "-m", "fleet.nodes.world", "--config", str(config)],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and "unknown model type 'tank'" in lines[0]

@@ -34,8 +34,13 @@ def test_world_launch_file_builds_the_world_node(monkeypatch):
     launch_ros = types.ModuleType("launch_ros")
     ros_actions = types.ModuleType("launch_ros.actions")
     ros_actions.Node = _Recorder
-    for name, module in {"launch": launch, "launch.actions": actions, "launch.substitutions": substitutions,
-                         "launch_ros": launch_ros, "launch_ros.actions": ros_actions}.items():
+    for name, module in {
+        "launch": launch,
+        "launch.actions": actions,
+        "launch.substitutions": substitutions,
+        "launch_ros": launch_ros,
+        "launch_ros.actions": ros_actions,
+    }.items():
         monkeypatch.setitem(sys.modules, name, module)
     namespace: dict = {}
     exec(compile(LAUNCH_FILE.read_text(), str(LAUNCH_FILE), "exec"), namespace)
@@ -43,7 +48,18 @@ def test_world_launch_file_builds_the_world_node(monkeypatch):
     declared = [a.args[0] for a in description.args[0] if a.args and isinstance(a.args[0], str)]
     assert declared == ["config", "status_file", "as_fast_as_possible", "log_level"]
     opaque = description.args[0][-1]
-    context = {"config": "/w/world.yaml", "status_file": "/w/s.json", "as_fast_as_possible": "True", "log_level": "info"}
+    context = {
+        "config": "/w/world.yaml",
+        "status_file": "/w/s.json",
+        "as_fast_as_possible": "True",
+        "log_level": "info",
+    }
     (node,) = opaque.kwargs["function"](context)
     assert node.kwargs["package"] == "fleet_nodes" and node.kwargs["executable"] == "world"
-    assert node.kwargs["arguments"] == ["--config", "/w/world.yaml", "--status-file", "/w/s.json", "--as-fast-as-possible"]
+    assert node.kwargs["arguments"] == [
+        "--config",
+        "/w/world.yaml",
+        "--status-file",
+        "/w/s.json",
+        "--as-fast-as-possible",
+    ]

@@ -25,7 +25,7 @@ def test_wall_ahead_at_known_distance():
 def test_rotated_robot_sees_wall_on_its_side():
     wall = Shape("rect", 0.0, 2.0, 0.3, half_x=5.0, half_y=0.1)  # tilted wall north of the robot
     ranges = scan([wall], [-1], yaw=math.pi / 2)
-    expected = (2.0 - 0.1 / math.cos(0.3))  # vertical distance to the lower face along x = 0
+    expected = 2.0 - 0.1 / math.cos(0.3)  # vertical distance to the lower face along x = 0
     assert abs(ranges[180] - expected) < 0.03
 
 
@@ -61,8 +61,12 @@ def test_overlap_tests():
     assert overlaps(Shape("circle", 0.35, 0, radius=0.2), box)
     assert not overlaps(Shape("circle", 0.25, 0, radius=0.2), box)
     assert not overlaps(Shape("circle", 0.4, 0.7, radius=0.2), box)  # near the corner but outside
-    assert overlaps(Shape("rect", 0, 0, math.pi / 4, half_x=0.5, half_y=0.1), Shape("rect", 0.4, 0.4, 0.0, half_x=0.1, half_y=0.1))
-    assert not overlaps(Shape("rect", 0, 0, math.pi / 4, half_x=0.5, half_y=0.1), Shape("rect", 0.4, -0.4, 0.0, half_x=0.1, half_y=0.1))
+    assert overlaps(
+        Shape("rect", 0, 0, math.pi / 4, half_x=0.5, half_y=0.1), Shape("rect", 0.4, 0.4, 0.0, half_x=0.1, half_y=0.1)
+    )
+    assert not overlaps(
+        Shape("rect", 0, 0, math.pi / 4, half_x=0.5, half_y=0.1), Shape("rect", 0.4, -0.4, 0.0, half_x=0.1, half_y=0.1)
+    )
 
 
 def test_matches_pybullet_ray_tests_in_a_random_scene():
@@ -79,22 +83,35 @@ def test_matches_pybullet_ray_tests_in_a_random_scene():
             if rng.random() < 0.5:
                 shape = Shape("circle", x, y, radius=rng.uniform(0.1, 0.6))
             else:
-                shape = Shape("rect", x, y, rng.uniform(-3, 3), half_x=rng.uniform(0.05, 3.0), half_y=rng.uniform(0.05, 1.0))
+                shape = Shape(
+                    "rect", x, y, rng.uniform(-3, 3), half_x=rng.uniform(0.05, 3.0), half_y=rng.uniform(0.05, 1.0)
+                )
             if overlaps(shape, sensor):
                 continue  # keep the sensor outside every shape
             if shape.kind == "circle":
                 col = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=shape.radius, height=2.0, physicsClientId=client)
             else:
-                col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=(shape.half_x, shape.half_y, 1.0), physicsClientId=client)
-            pb.createMultiBody(0, col, basePosition=(x, y, 0.0),
-                               baseOrientation=pb.getQuaternionFromEuler((0, 0, shape.yaw)), physicsClientId=client)
+                col = pb.createCollisionShape(
+                    pb.GEOM_BOX, halfExtents=(shape.half_x, shape.half_y, 1.0), physicsClientId=client
+                )
+            pb.createMultiBody(
+                0,
+                col,
+                basePosition=(x, y, 0.0),
+                baseOrientation=pb.getQuaternionFromEuler((0, 0, shape.yaw)),
+                physicsClientId=client,
+            )
             shapes.append(shape)
         scene = Scene.build(shapes, [-1] * len(shapes))
         for yaw, angles in ((0.4, ANGLES), (-2.0, beam_angles(-1.2, 2.4 / 99, 100))):
             ours = cast(scene, 0.0, 0.0, yaw, angles, 0.05, 8.0)
             ends = [(8.0 * math.cos(a + yaw), 8.0 * math.sin(a + yaw), 0.0) for a in angles]
-            theirs = np.array([hit[2] * 8.0 if hit[0] >= 0 else np.inf
-                               for hit in pb.rayTestBatch([(0.0, 0.0, 0.0)] * len(angles), ends, physicsClientId=client)])
+            theirs = np.array(
+                [
+                    hit[2] * 8.0 if hit[0] >= 0 else np.inf
+                    for hit in pb.rayTestBatch([(0.0, 0.0, 0.0)] * len(angles), ends, physicsClientId=client)
+                ]
+            )
             both = np.isfinite(theirs)
             assert np.array_equal(np.isfinite(ours), both) or np.sum(np.isfinite(ours) != both) <= 2  # grazing beams
             assert np.all(np.abs(ours[both & np.isfinite(ours)] - theirs[both & np.isfinite(ours)]) < 0.01)
