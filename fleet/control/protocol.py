@@ -122,6 +122,23 @@ def alive_key(fleet: str, agent: str) -> str:
     return f"fleet/{fleet}/alive/agent/{agent}"
 
 
+def data_key(fleet: str, topic: str) -> str:
+    """Where the `zenoh` transport carries a ROS topic ("/robot1/odom" -> fleet/f/data/robot1/odom)."""
+    return f"fleet/{fleet}/data/{topic.strip('/')}"
+
+
+def agent_key_exprs(agent: str) -> list[str]:
+    """Every key an agent answers, announces or asks on, in any fleet: what the router's access
+    rules let an agent's certificate reach (fleet/*/data/** is the fleets' shared ROS data)."""
+    return [
+        f"fleet/*/agent/{agent}/**",
+        agent_status_key("*", agent),
+        alive_key("*", agent),
+        desired_key("*", agent),
+        data_key("*", "**"),
+    ]
+
+
 def fleet_of_key(key: str) -> str | None:
     """The fleet chunk of a `fleet/<fleet>/...` key, or None when it is a wildcard."""
     parts = str(key).split("/")

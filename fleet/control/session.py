@@ -44,9 +44,26 @@ def _base_config(user_config: Path | None):
     if user_config is None:
         return zenoh.Config()
     try:
-        return zenoh.Config.from_file(str(user_config))
+        config = zenoh.Config.from_file(str(user_config))
     except Exception as error:  # zenoh raises ZError with the parser's message
         raise FleetError(f"{user_config}: invalid Zenoh config: {error}") from None
+    _check_tls_files(config)
+    return config
+
+
+def _check_tls_files(config) -> None:
+    """Say which certificate is unusable and why, before Zenoh fails a handshake naming none."""
+    from fleet.control.certificates import check_certificate, check_key
+
+    tls = json.loads(config.get_json("transport/link/tls"))
+    authority = Path(tls["root_ca_certificate"]) if tls.get("root_ca_certificate") else None
+    if authority is not None:
+        check_certificate(authority, None)
+    for role in ("listen", "connect"):
+        if tls.get(f"{role}_certificate"):
+            check_certificate(Path(tls[f"{role}_certificate"]), authority)
+        if tls.get(f"{role}_private_key"):
+            check_key(Path(tls[f"{role}_private_key"]))
 
 
 def _set_unless_user_set(config, key: str, value) -> None:
@@ -103,11 +120,22 @@ def open_client(connect: list[str], user_config: Path | None = None, lease_ms: i
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
-        where = ", ".join(connect) or "the configured endpoint"
+        endpoints = json.loads(config.get_json("connect/endpoints"))
+        where = ", ".join(endpoints)
         raise ControlError(
-            f"cannot reach the fleet router at {where}: {_first_line(error)} (is it running? "
-            f"if it requires credentials or TLS, give them with --zenoh-config or ${CONFIG_VARIABLE})"
+            f"cannot reach the fleet router at {where}: {_first_line(error)} ({_hint(config, endpoints)})"
         ) from None
+
+
+def _hint(config, endpoints: list[str]) -> str:
+    if any(endpoint.startswith("tls/") for endpoint in endpoints):
+        if not json.loads(config.get_json("transport/link/tls/connect_certificate")):
+            return (
+                "no client certificate: a router made with `fleet certs` refuses TLS clients without one; "
+                f"give a member's config with --zenoh-config or ${CONFIG_VARIABLE}"
+            )
+        return "is it running? is its certificate issued by the same authority, for the address dialled?"
+    return f"is it running? if it requires credentials or TLS, give them with --zenoh-config or ${CONFIG_VARIABLE}"
 
 
 def open_client_retrying(connect: list[str], user_config: Path | None, lease_ms: int | None, stop) -> object | None:

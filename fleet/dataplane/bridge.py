@@ -48,7 +48,7 @@ class Bridge:
     def __init__(self, fleet: str, exports, imports, session, node) -> None:
         import zenoh
 
-        from fleet.dataplane.topics import data_key
+        from fleet.control.protocol import data_key
 
         self.counts = {"out": 0, "in": 0}
         self._keep = []  # Zenoh publishers and subscribers live as long as the bridge

@@ -17,11 +17,6 @@ from pydantic import BaseModel, ConfigDict, Field
 MAX_ROUTES = 5000  # far above 5 topics for each of a fleet's robots
 
 
-def data_key(fleet: str, topic: str) -> str:
-    """Where the `zenoh` transport carries a ROS topic ("/robot1/odom" -> fleet/f/data/robot1/odom)."""
-    return f"fleet/{fleet}/data/{topic.strip('/')}"
-
-
 class TopicRoute(BaseModel):
     """One ROS topic a Zenoh bridge carries (on the wire in ApplyRequest.bridge)."""
 

@@ -28,11 +28,12 @@ class ControlPlane:
         self.root = root
         self.env = env
         self.port = free_tcp_port()
+        self.scheme = "tcp"  # "tls" for a router whose Zenoh config listens with TLS
         self.processes: dict[str, subprocess.Popen] = {}  # "router" or "agent-<name>" -> process
 
     @property
     def endpoint(self) -> str:
-        return f"tcp/127.0.0.1:{self.port}"
+        return f"{self.scheme}/127.0.0.1:{self.port}"
 
     # -- processes ------------------------------------------------------------------------------
 

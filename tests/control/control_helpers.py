@@ -95,10 +95,10 @@ class Cluster(ControlPlane):
         with self.client() as client:
             return deploy(client, expansion, wait=wait, timeout=timeout)
 
-    def view(self, fleet: str | None = None):
+    def view(self, fleet: str | None = None, config: Path | None = None):
         from fleet.control.view import build_view
 
-        with self.client() as client:
+        with self.client(config) as client:
             return build_view(*client.status(fleet), time.time())
 
     def cli(self, *args: str, timeout: float = 60, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:

@@ -1,0 +1,76 @@
+"""`fleet certs`: a fleet's certificate authority, its members' certificates and Zenoh configs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from fleet.errors import FleetError
+
+
+def register(app: typer.Typer) -> None:
+    app.command("certs")(certs)
+
+
+def certs(
+    spec: Path = typer.Argument(..., help="Fleet spec: its name and agents get certificates."),
+    out: Path = typer.Option(..., "--out", "-o", help="Directory of the authority, certificates and configs."),
+    router_address: list[str] = typer.Option(
+        ["127.0.0.1", "localhost"], "--router-address", help="Address agents dial the router by (repeatable)."
+    ),
+    operator: list[str] = typer.Option(["operator"], "--operator", help="Name of a CLI user's certificate."),
+    days: int = typer.Option(825, "--days", min=1, max=3650, help="Validity of new certificates."),
+    json: bool = typer.Option(False, "--json", help="Print machine-readable JSON instead of a table."),
+) -> None:
+    """Create (or complete) the fleet's certificate authority in OUT, a certificate for the router,
+    each agent of SPEC and each operator, and the Zenoh configs that use them: mutual TLS, and
+    access rules letting each agent reach only its own keys.  Existing certificates are kept."""
+    from fleet.cli.output import console, print_json
+    from fleet.cli.render_cmd import load_and_expand
+    from fleet.control import certificates as c
+    from fleet.control import protocol as p
+    from fleet.control import security
+
+    expansion = load_and_expand(spec, [])
+    agents = sorted(set(expansion.spec.agents) | {bundle.agent for bundle in expansion.bundles})
+    for name in operator:
+        problem = p.key_name_problem(name)
+        if problem or name in agents or name == security.ROUTER:
+            why = problem or "is the name of an agent or the router"
+            raise FleetError(f"--operator {name!r}: {why}")
+    if out.exists() and not out.is_dir():
+        raise FleetError(f"{out}: not a directory")
+
+    made: list[str] = []
+    if not (out / c.CA_CERT).exists():
+        c.create_authority(out, expansion.fleet)
+        made.append(c.CA_CERT)
+    authority = c.read_certificate(out / c.CA_CERT)
+    if c.organization(authority) != expansion.fleet:
+        held = c.organization(authority)
+        raise FleetError(f"{out / c.CA_CERT}: the authority of fleet {held!r}, not {expansion.fleet!r}")
+    members = [c.Member(security.ROUTER, server=True, addresses=tuple(router_address))]
+    members += [c.Member(name) for name in agents + list(operator)]
+    for member in members:
+        if not c.cert_path(out, member.name).exists():
+            c.issue(out, member, days=days)
+            made.append(c.cert_path(out, member.name).name)
+
+    configs = {security.config_path(out, security.ROUTER): security.router_config(out, agents, list(operator))}
+    configs |= {security.config_path(out, "agent", name): security.member_config(out, name) for name in agents}
+    configs |= {security.config_path(out, "operator", name): security.member_config(out, name) for name in operator}
+    for path, config in configs.items():
+        security.write_config(path, config)
+
+    if json:
+        print_json({"directory": str(out), "created": made, "configs": [str(path) for path in configs]})
+        return
+    router = security.config_path(out, security.ROUTER)
+    console().print(
+        f"fleet {expansion.fleet}: {len(made)} new file(s) in {out}/ ({', '.join(made) or 'all certificates kept'})\n"
+        f"  router:   fleet router --listen tls/0.0.0.0:7447 --zenoh-config {router}\n"
+        f"  agent:    fleet agent --name NAME --connect tls/ROUTER:7447 --zenoh-config {out}/agent-NAME.json5\n"
+        f"  operator: fleet status --connect tls/ROUTER:7447 --zenoh-config {out}/operator-{operator[0]}.json5\n"
+        "Keep ca.key off the robots: it signs new members."
+    )

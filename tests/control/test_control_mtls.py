@@ -1,0 +1,152 @@
+"""A fleet on an untrusted network: `fleet certs` makes its authority, certificates and Zenoh
+configs; the router demands mutual TLS and applies access rules.  Checked with real processes:
+the CLI with an operator's certificate deploys; a client without a certificate, with an expired
+one, with one from another fleet's authority, or with an unreadable one, is refused with a line
+that says which and why; an agent's certificate reaches its own keys and no other agent's."""
+
+from __future__ import annotations
+
+import datetime
+import json
+import shutil
+
+import psutil
+import pytest
+from control_helpers import wait_until
+
+from fleet.control import certificates as c
+from fleet.control import protocol as p
+from fleet.control.session import open_client
+from fleet.errors import ControlError
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture
+def secured(fresh_cluster, tmp_path):
+    """`fleet certs` for the tiny fleet, and its router and agents running with them."""
+    cluster = fresh_cluster
+    spec = cluster.spec()
+    certs = tmp_path / "certs"
+    made = cluster.cli("certs", str(spec), "--out", str(certs), "--json")
+    assert made.returncode == 0, made.stdout + made.stderr
+    assert {"ca.pem", "router.pem", "hostA.pem", "hostB.pem", "operator.pem"} <= set(json.loads(made.stdout)["created"])
+    cluster.scheme = "tls"
+    cluster.start_router(certs / "router.json5")
+    cluster.start_agent("hostA", certs / "agent-hostA.json5")
+    cluster.start_agent("hostB", certs / "agent-hostB.json5")
+    return cluster, spec, certs
+
+
+def fleet_cli(cluster, *args, config=None):
+    return cluster.cli(*args, "--connect", cluster.endpoint, *(["--zenoh-config", str(config)] if config else []))
+
+
+def test_mutual_tls_and_access_rules(secured, tmp_path):
+    cluster, spec, certs = secured
+    operator = certs / "operator-operator.json5"
+
+    def agents_online():
+        status = fleet_cli(cluster, "status", "--json", config=operator)
+        return status.stdout and {a["name"] for a in json.loads(status.stdout)["agents"] if a["online"]} >= {
+            "hostA",
+            "hostB",
+        }
+
+    assert wait_until(agents_online, 20), cluster.log("agent-hostA") + cluster.log("router")
+    deployed = fleet_cli(cluster, "deploy", str(spec), config=operator)
+    assert deployed.returncode == 0, deployed.stdout + deployed.stderr
+
+    # No certificate: refused, and the error says that is why.
+    refused = fleet_cli(cluster, "status")
+    assert refused.returncode == 1 and "no client certificate" in refused.stderr, refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+
+    # A certificate of another fleet's authority, beside this fleet's authority.
+    other = tmp_path / "other"
+    c.create_authority(other, "elsewhere")
+    c.issue(other, c.Member("operator"))
+    mixed = json.loads(operator.read_text())
+    mixed["transport"]["link"]["tls"].update(
+        connect_certificate=str(other / "operator.pem"), connect_private_key=str(other / "operator.key")
+    )
+    (tmp_path / "mixed.json5").write_text(json.dumps(mixed))
+    refused = fleet_cli(cluster, "status", config=tmp_path / "mixed.json5")
+    assert refused.returncode == 2, refused.stderr
+    assert "operator.pem" in refused.stderr and "fleet 'elsewhere'" in refused.stderr, refused.stderr
+
+    # An expired certificate of this fleet.
+    expired = tmp_path / "expired"
+    expired.mkdir()
+    for name in ("ca.pem", "ca.key"):
+        shutil.copy(certs / name, expired / name)
+    c.issue(expired, c.Member("late"), days=1, valid_from=datetime.datetime(2020, 1, 1, tzinfo=datetime.UTC))
+    late = dict(mixed)
+    late["transport"]["link"]["tls"].update(
+        connect_certificate=str(expired / "late.pem"), connect_private_key=str(expired / "late.key")
+    )
+    (tmp_path / "late.json5").write_text(json.dumps(late))
+    refused = fleet_cli(cluster, "status", config=tmp_path / "late.json5")
+    assert refused.returncode == 2 and "late.pem" in refused.stderr and "expired on 2020-01-02" in refused.stderr
+
+    # An unreadable certificate (a directory where the file should be).
+    late["transport"]["link"]["tls"]["connect_certificate"] = str(expired)
+    (tmp_path / "late.json5").write_text(json.dumps(late))
+    refused = fleet_cli(cluster, "status", config=tmp_path / "late.json5")
+    assert refused.returncode == 2 and "cannot read certificate" in refused.stderr, refused.stderr
+
+    # An agent's certificate reaches its own keys only: hostA may ask its own agent for logs,
+    # but neither tell hostB to remove its robots nor read the fleet's status.
+    hostb_pids = {pid for row in cluster.view("tiny", operator).robots if row.agent == "hostB" for pid in row.pids}
+    assert hostb_pids
+    with open_client([cluster.endpoint], certs / "agent-hostA.json5") as session:
+        own = list(
+            session.get(
+                p.logs_key("tiny", "hostA"), payload=p.encode(p.LogsRequest(fleet="tiny", robot="robot1")), timeout=5
+            )
+        )
+        assert own and own[0].ok is not None
+        empty = p.ApplyRequest(fleet="tiny", agent="hostB", generation=10**6, domain_id=cluster.domain_id, bundles=[])
+        assert not list(session.get(p.apply_key("tiny", "hostB"), payload=p.encode(empty), timeout=3))
+        assert not list(session.get(p.status_query("tiny"), timeout=3))
+    assert all(psutil.pid_exists(pid) for pid in hostb_pids)
+    hostb = [row for row in cluster.view("tiny", operator).robots if row.agent == "hostB"]
+    assert {pid for row in hostb for pid in row.pids} == hostb_pids
+
+
+def test_certs_command_refuses_bad_input(fresh_cluster, tmp_path):
+    cluster = fresh_cluster
+    spec = cluster.spec()
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(spec), "--out", str(certs)).returncode == 0
+    again = cluster.cli("certs", str(spec), "--out", str(certs), "--json")
+    assert again.returncode == 0 and json.loads(again.stdout)["created"] == []  # everything kept
+    other = cluster.spec(name="other", fleet="other")
+    refused = cluster.cli("certs", str(other), "--out", str(certs))
+    assert refused.returncode == 2 and "the authority of fleet 'tiny', not 'other'" in refused.stderr, refused.stderr
+    refused = cluster.cli("certs", str(spec), "--out", str(certs), "--operator", "hostA")
+    assert refused.returncode == 2 and "--operator 'hostA'" in refused.stderr
+    (tmp_path / "file").write_text("")
+    refused = cluster.cli("certs", str(spec), "--out", str(tmp_path / "file"))
+    assert refused.returncode == 2 and "not a directory" in refused.stderr
+
+
+def test_refused_session_is_a_control_error(fresh_cluster, tmp_path):
+    cluster = fresh_cluster
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(cluster.spec()), "--out", str(certs)).returncode == 0
+    cluster.scheme = "tls"
+    cluster.start_router(certs / "router.json5")
+    with pytest.raises(ControlError, match="no client certificate"):
+        open_client([cluster.endpoint])
+    # And an agent started with another fleet's files tells which file and why, then exits.
+    other = tmp_path / "other"
+    c.create_authority(other, "elsewhere")
+    c.issue(other, c.Member("hostA"))
+    config = json.loads((certs / "agent-hostA.json5").read_text())
+    config["transport"]["link"]["tls"]["connect_certificate"] = str(other / "hostA.pem")
+    (tmp_path / "bad-agent.json5").write_text(json.dumps(config))
+    cluster.start_agent("hostA", tmp_path / "bad-agent.json5")
+    process = cluster.processes["agent-hostA"]
+    assert process.wait(timeout=30) == 2
+    assert "hostA.pem" in cluster.log("agent-hostA") and "fleet 'elsewhere'" in cluster.log("agent-hostA")
