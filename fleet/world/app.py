@@ -37,6 +37,8 @@ from fleet.world.status import (
 log = logging.getLogger("fleet.world")
 
 SLOT_RATE = 60.0  # Hz (sim): lidar batches, contact checks and trail samples run on these ticks
+MARKER_PERIOD = 0.5  # s (wall): markers are for people watching RViz, whatever the sim's speed
+CONTACT_SHOWN = 1.0  # s (sim): a robot's marker stays red this long after a contact
 STATUS_PERIOD = 0.25  # s (wall) between status file writes
 RELOAD_PERIOD = 0.5  # s (wall) between world.yaml mtime checks
 MAX_LAG = 0.5  # s: in real-time mode, a world further behind than this stops trying to catch up
@@ -79,6 +81,7 @@ class WorldApp:
         self._tick = 0
         self._slot_every = max(1, round(self.spec.physics_rate / SLOT_RATE))
         self._next_clock = 0.0
+        self._next_markers = 0.0  # time.monotonic() of the next marker publication
         self._rtf_window: deque[tuple[float, float]] = deque()
         self.real_time_factor = 0.0
         for obstacle in self.spec.obstacles:
@@ -272,6 +275,20 @@ class WorldApp:
             log.info("contact %s: %s - %s at t=%.2f", event.kind, event.a, event.b, event.sim_time)
         for name, (x, y, _) in poses.items():
             self.robots[name].trail.sample(now, x, y)
+        if self.bridge is not None and time.monotonic() >= self._next_markers:
+            self._next_markers = time.monotonic() + MARKER_PERIOD
+            self._publish_markers(now, poses)
+
+    def _publish_markers(self, now: float, poses: dict[str, tuple[float, float, float]]) -> None:
+        touching = {
+            name
+            for event in self.contacts_last
+            if now - event["sim_time"] <= CONTACT_SHOWN
+            for name in (event["a"], event["b"])
+        }
+        obstacles = [spec for _, spec in self.physics.obstacles.values()]
+        robots = [(name, self.robots[name].spec.model, pose, name in touching) for name, pose in poses.items()]
+        self.bridge.publish_markers(now, obstacles, robots)
 
     def status(self) -> dict[str, Any]:
         robots = {}

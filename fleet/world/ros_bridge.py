@@ -26,8 +26,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, LaserScan
+from visualization_msgs.msg import MarkerArray
 
-from fleet.world.description import RobotSpec
+from fleet.world import markers
+from fleet.world.description import ModelSpec, ObstacleSpec, RobotSpec
 
 # Best-effort subscriptions match both reliable and best-effort publishers; reliable publishers
 # match both kinds of subscribers (RViz, Nav2's sensor-data QoS, ros2 topic echo).
@@ -65,6 +67,7 @@ class RobotChannel:
         )
         self.cmd_sub = node.create_subscription(Twist, f"{ns}/cmd_vel", self._on_cmd, _SUB_QOS)
         self.battery_sub = node.create_subscription(BatteryState, f"{ns}/battery", self._on_battery, _SUB_QOS)
+        self.markers_pub = node.create_publisher(MarkerArray, f"{ns}/markers", _PUB_QOS)
 
         self.odom = Odometry()
         self.odom.header.frame_id = f"{spec.name}/odom"
@@ -141,7 +144,7 @@ class RobotChannel:
         self.scan_pub.publish(msg)
 
     def destroy(self) -> None:
-        for entity in (self.odom_pub, self.scan_pub, self.truth_pub):
+        for entity in (self.odom_pub, self.scan_pub, self.truth_pub, self.markers_pub):
             if entity is not None:
                 self.node.destroy_publisher(entity)
         self.node.destroy_subscription(self.cmd_sub)
@@ -155,6 +158,7 @@ class RosBridge:
         rclpy.init(args=ros_args, context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = Node(node_name, context=self.context)
         self.clock_pub = self.node.create_publisher(Clock, "/clock", _PUB_QOS)
+        self.scene_pub = self.node.create_publisher(MarkerArray, "~/markers", _PUB_QOS)
         self._clock_msg = Clock()
         self.channels: dict[str, RobotChannel] = {}
         self.sim_time = 0.0  # written by the physics thread, read by callbacks for stamps
@@ -184,6 +188,24 @@ class RosBridge:
     def publish_clock(self, sim_time: float) -> None:
         self._clock_msg.clock = stamp(sim_time)
         self.clock_pub.publish(self._clock_msg)
+
+    def publish_markers(
+        self,
+        sim_time: float,
+        obstacles: list[ObstacleSpec],
+        robots: list[tuple[str, ModelSpec, tuple[float, float, float], bool]],
+    ) -> None:
+        """The scene on ~/markers, and each robot's own markers on <ns>/markers."""
+        t = stamp(sim_time)
+        scene = MarkerArray(markers=markers.obstacle_markers(obstacles, t))
+        for name, model, pose, in_contact in robots:
+            own = markers.robot_markers(name, model, pose, in_contact, t)
+            scene.markers.extend(own)
+            channel = self.channels.get(name)
+            if channel is not None and channel.markers_pub.get_subscription_count():
+                channel.markers_pub.publish(MarkerArray(markers=own))
+        if self.scene_pub.get_subscription_count():
+            self.scene_pub.publish(scene)
 
     def close(self) -> None:
         for name in list(self.channels):

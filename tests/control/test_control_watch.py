@@ -1,0 +1,78 @@
+"""`fleet status --watch` in a terminal: it redraws as the fleet changes (a robot deployed while
+watching appears) and Ctrl-C ends it cleanly."""
+
+from __future__ import annotations
+
+import os
+import pty
+import select
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+
+class Terminal:
+    """A command on a pseudo-terminal (rich redraws in place only on a terminal), its output kept."""
+
+    def __init__(self, args: list[str], env: dict[str, str]):
+        self.master, replica = pty.openpty()
+        self.process = subprocess.Popen(
+            args,
+            env={**env, "COLUMNS": "160", "LINES": "50", "TERM": "xterm"},
+            stdin=replica,
+            stdout=replica,
+            stderr=replica,
+            start_new_session=True,
+        )
+        os.close(replica)
+        self.output = ""
+
+    def read_until(self, text: str, timeout: float) -> str:
+        deadline = time.monotonic() + timeout
+        while text not in self.output:
+            left = deadline - time.monotonic()
+            if left <= 0 or self.process.poll() is not None:
+                raise AssertionError(f"{text!r} not shown within {timeout} s; screen so far:\n{self.output[-3000:]}")
+            ready, _, _ = select.select([self.master], [], [], min(left, 0.2))
+            if ready:
+                try:
+                    self.output += os.read(self.master, 65536).decode(errors="replace")
+                except OSError:  # the command ended and closed the terminal
+                    continue
+        return self.output
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+        os.close(self.master)
+
+
+def test_status_watch_redraws_and_ends_on_ctrl_c(fresh_cluster):
+    cluster = fresh_cluster
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.start_agent("hostB")
+    cluster.wait_agents_online("hostA", "hostB")
+    assert cluster.deploy(cluster.spec()).ok
+
+    watch = Terminal(
+        [sys.executable, "-m", "fleet", "status", "--watch", "--fleet", "tiny", "--connect", cluster.endpoint],
+        cluster.env,
+    )
+    try:
+        watch.read_until("robot3", 30)
+        assert "robot4" not in watch.output
+        robots = [{"name": "robot1"}, {"name": "robot2", "agent": "hostB"}, {"name": "robot3", "agent": "hostB"}]
+        assert cluster.deploy(cluster.spec(robots=[*robots, {"name": "robot4", "agent": "hostB"}])).ok
+        watch.read_until("robot4", 15)  # the redraw after the deploy
+
+        watch.process.send_signal(signal.SIGINT)
+        assert watch.process.wait(timeout=10) == 0
+    finally:
+        watch.close()
