@@ -195,16 +195,21 @@ class RosBridge:
         obstacles: list[ObstacleSpec],
         robots: list[tuple[str, ModelSpec, tuple[float, float, float], bool]],
     ) -> None:
-        """The scene on ~/markers, and each robot's own markers on <ns>/markers."""
+        """The scene on ~/markers, and each robot's own markers on <ns>/markers; built only for
+        topics someone subscribes to (hundreds of robots' markers are not free)."""
         t = stamp(sim_time)
-        scene = MarkerArray(markers=markers.obstacle_markers(obstacles, t))
+        scene_wanted = self.scene_pub.get_subscription_count() > 0
+        scene = MarkerArray(markers=markers.obstacle_markers(obstacles, t) if scene_wanted else [])
         for name, model, pose, in_contact in robots:
+            channel = self.channels.get(name)
+            own_wanted = channel is not None and channel.markers_pub.get_subscription_count() > 0
+            if not (scene_wanted or own_wanted):
+                continue
             own = markers.robot_markers(name, model, pose, in_contact, t)
             scene.markers.extend(own)
-            channel = self.channels.get(name)
-            if channel is not None and channel.markers_pub.get_subscription_count():
+            if own_wanted:
                 channel.markers_pub.publish(MarkerArray(markers=own))
-        if self.scene_pub.get_subscription_count():
+        if scene_wanted:
             self.scene_pub.publish(scene)
 
     def close(self) -> None:
