@@ -8,7 +8,6 @@ and respawned nodes get new ones.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -142,13 +141,11 @@ class Unit:
         """The world's status file as written (None: not the world, or nothing readable yet).
 
         The world writes it atomically, so a read never sees half of one."""
+        from fleet.world.status import read_status
+
         if self.bundle.kind != "world":
             return None
-        try:
-            data = json.loads((self.directory / WORLD_STATUS_FILE).read_text())
-        except (OSError, ValueError):
-            return None
-        return data if isinstance(data, dict) else None
+        return read_status(self.directory / WORLD_STATUS_FILE)
 
     def world_summary(self) -> WorldSummary | None:
         """What a status reply carries of the world: no trails, no scan hits, the last few contacts.

@@ -28,6 +28,7 @@ from fleet.world.status import (
     SCAN_HITS_MAX,
     Trail,
     last_poses,
+    last_sim_time,
     model_dict,
     obstacle_dict,
     read_status,
@@ -54,6 +55,18 @@ class _Robot:
     trail: Trail = field(default_factory=Trail)
     hits: tuple | None = None  # (x, y, yaw, angles, ranges) of the latest scan
     velocity: tuple[float, float] = (0.0, 0.0)
+
+
+def resume_time(previous: dict[str, Any] | None) -> float:
+    """Where a restarted world's clock starts: at the time of a clean stop; after a crash, past
+    what it may have published since its last status write (a jump forward is harmless to nodes
+    on sim time, a jump back stalls their timers and TF)."""
+    resumed = last_sim_time(previous)
+    if previous is None or previous.get("stopped") is True or resumed == 0.0:
+        return resumed
+    rtf = previous.get("real_time_factor")
+    rtf = rtf if isinstance(rtf, int | float) and 0 < rtf < 1e4 else 1.0
+    return resumed + 2 * STATUS_PERIOD * max(1.0, rtf)
 
 
 class WorldApp:
@@ -86,7 +99,13 @@ class WorldApp:
         self.real_time_factor = 0.0
         for obstacle in self.spec.obstacles:
             self._add_obstacle(obstacle)
-        restored = last_poses(read_status(self.status_file)) if self.status_file else {}
+        # A restarted world resumes where it stopped: its time (nodes on sim time would otherwise
+        # see /clock jump back, and their timers stall) and its robots' poses.
+        previous = read_status(self.status_file) if self.status_file else None
+        if previous is not None and previous.get("fleet") != self.spec.fleet:
+            previous = None  # another fleet's file: start afresh
+        self.physics.sim_time = resume_time(previous)
+        restored = last_poses(previous)
         for robot in self.spec.robots:
             self._spawn(robot, restored.get(robot.name))
 
@@ -321,9 +340,9 @@ class WorldApp:
             "errors": list(self.errors.values()),
         }
 
-    def write_status(self) -> None:
+    def write_status(self, stopped: bool = False) -> None:
         if self.status_file is not None:
-            write_status(self.status_file, self.status())
+            write_status(self.status_file, {**self.status(), "stopped": stopped})
 
     def _measure_rtf(self, wall: float) -> None:
         window = self._rtf_window
@@ -363,7 +382,7 @@ class WorldApp:
                 next_reload = wall + RELOAD_PERIOD
                 self.check_reload()
         self._measure_rtf(time.monotonic())
-        self.write_status()
+        self.write_status(stopped=True)
 
     def close(self) -> None:
         if self.bridge is not None:

@@ -16,6 +16,7 @@ plane (fleet.control.protocol.WorldDocument validates it) and cuts it down for s
 from __future__ import annotations
 
 import json
+import math
 from collections import deque
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,14 @@ def read_status(path: str | Path) -> dict[str, Any] | None:
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None
+
+
+def last_sim_time(status: dict[str, Any] | None) -> float:
+    """The sim time a status document reports (0 when missing or not a finite time >= 0)."""
+    value = (status or {}).get("sim_time")
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        return 0.0
+    return float(value)
 
 
 def last_poses(status: dict[str, Any] | None) -> dict[str, Pose2D]:

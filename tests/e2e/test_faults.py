@@ -95,18 +95,22 @@ def test_killed_world_restarts_with_robots_at_their_last_poses(fleet):
     killed_at = time.time()
     fleet.kill_world()
     last = {robot: fleet.pose(robot) for robot in ROBOTS}  # the dead world's last status file
+    last_time = fleet.world()["sim_time"]
 
-    # The respawned world's first status: each robot where the old world left it (it may have
-    # driven since, at most 1 m/s times the new world's sim time).
+    # The respawned world's first status: its clock went on from the old one's (not back to 0),
+    # and each robot is where the old world left it (it may have driven since, at most 1 m/s
+    # times the sim time that passed).
     first = fleet.wait_for(
         lambda: (world := fleet.world()) and world["wall_time"] > killed_at and world,
         timeout=30,
         what="a status from the restarted world",
     )
+    assert first["sim_time"] > last_time, (last_time, first["sim_time"])
     for robot in ROBOTS:
         pose = first["robots"][robot]["pose"]
         moved = last[robot].distance_to((pose["x"], pose["y"]))
-        assert moved <= 1.0 * first["sim_time"] + 0.05, (robot, last[robot], pose, first["sim_time"])
+        elapsed = first["sim_time"] - last_time
+        assert moved <= 1.0 * elapsed + 0.05, (robot, last[robot], pose, elapsed)
 
     fleet.wait_desired_state(timeout=30)
     assert {robot: fleet.pids(robot) for robot in ROBOTS} == robots_before  # the robots' nodes kept running

@@ -86,8 +86,37 @@ def test_restart_puts_robots_back_where_they_were(files):
     try:
         rx, ry, _ = again.physics.robots["robot1"].pose()
         assert abs(rx - x) < 1e-3 and abs(ry - status["robots"]["robot1"]["pose"]["y"]) < 1e-3
+        # Time goes on from where it stopped, not from 0.
+        assert again.physics.sim_time == status["sim_time"] >= 2.0
+        again.run(sim_duration=0.5)
+        assert abs(json.loads(status_file.read_text())["sim_time"] - (status["sim_time"] + 0.5)) < 0.01
     finally:
         again.close()
+
+    # After a crash (no final write) the clock resumes past anything it may have published since
+    # its last write: forward, never back.
+    crashed = json.loads(status_file.read_text())
+    crashed["stopped"] = False
+    status_file.write_text(json.dumps(crashed))
+    resumed = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        assert (
+            crashed["sim_time"] + 0.5
+            <= resumed.physics.sim_time
+            <= crashed["sim_time"] + 0.5 * max(1.0, crashed["real_time_factor"])
+        )
+    finally:
+        resumed.close()
+
+    # Another fleet's status file restores nothing.
+    other = json.loads(status_file.read_text())
+    other["fleet"] = "elsewhere"
+    status_file.write_text(json.dumps(other))
+    fresh = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        assert fresh.physics.sim_time == 0.0 and fresh.physics.robots["robot1"].pose()[0] == 0.0
+    finally:
+        fresh.close()
 
 
 def test_invalid_world_at_start_raises(tmp_path):
