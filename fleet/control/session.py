@@ -14,8 +14,14 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fleet.errors import ControlError, FleetError
+
+if TYPE_CHECKING:
+    import threading
+
+    import zenoh
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 ENDPOINT_VARIABLE = "FLEET_CONNECT"
@@ -95,7 +101,7 @@ def _common(config, lease_ms: int | None) -> None:
         _set_unless_user_set(config, "transport/link/tx/lease", lease_ms)
 
 
-def open_client(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None):
+def open_client(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None) -> zenoh.Session:
     """Open a client session or raise ControlError (router unreachable or credentials refused)."""
     import zenoh
 
@@ -110,7 +116,9 @@ def open_client(connect: list[str], user_config: Path | None = None, lease_ms: i
         ) from None
 
 
-def open_client_retrying(connect: list[str], user_config: Path | None, lease_ms: int | None, stop) -> object | None:
+def open_client_retrying(
+    connect: list[str], user_config: Path | None, lease_ms: int | None, stop: threading.Event
+) -> zenoh.Session | None:
     """For daemons: retry until the router answers (or `stop` is set, then None)."""
     delay = 0.2
     while not stop.is_set():
