@@ -96,7 +96,8 @@ class ZenohSetup(Setup):
     each), a router on sim, a bridge on each side carrying the robots' topics rack -> sim."""
 
     def __init__(self, name: str, domain: int, lan: Lan):
-        self.name, self.lan, self.domain = name, lan, domain
+        self.name, self.domain = name, domain
+        self.lan: Lan = lan  # never None here: the transport needs two computers
         self.server = f"127.0.0.1:{discovery_server_port(domain)}"
         self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
         self.tmp = Path(tempfile.mkdtemp())

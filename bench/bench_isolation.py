@@ -161,7 +161,7 @@ def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe
         pids = set()
         for session in sessions:
             for status in session.status():
-                if status.state != "running":
+                if status.state != "running" or status.pid is None:  # a running process has a pid
                     raise RuntimeError(f"{status.process} is {status.state}: {session.tail(status.process)}")
                 pids.update(group_members(status.pid))
         # CPU the processes spent to get there: independent of DDS discovery jitter.

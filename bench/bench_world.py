@@ -21,6 +21,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -53,7 +54,7 @@ def world_yaml(model: str, count: int) -> dict:
                 "cmd_timeout": 0.5,
             }
         )
-    obstacles = [
+    obstacles: list[dict[str, Any]] = [
         {"name": "north", "type": "wall", "position": [0.0, half], "size": [2 * half, 0.2, 1.0]},
         {"name": "south", "type": "wall", "position": [0.0, -half], "size": [2 * half, 0.2, 1.0]},
         {"name": "east", "type": "wall", "position": [half, 0.0], "size": [0.2, 2 * half, 1.0]},
@@ -99,7 +100,8 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
         published["scan"] += 1
         scan(self, *a)
 
-    RobotChannel.publish_odom, RobotChannel.publish_scan = count_odom, count_scan
+    # Count the real publishes by wrapping the class's methods (this child process only).
+    RobotChannel.publish_odom, RobotChannel.publish_scan = count_odom, count_scan  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "world.yaml"
         config.write_text(yaml.safe_dump(world_yaml(model, count)))

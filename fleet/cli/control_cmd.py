@@ -8,8 +8,14 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import typer
+
+if TYPE_CHECKING:
+    from rich.progress import TaskID
+
+    from fleet.control.client import ControlClient
 
 CONNECT_HELP = "Router endpoint to connect to (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."
 ZENOH_CONFIG_HELP = "Zenoh JSON5 config file for TLS, user/password or access control (or $FLEET_ZENOH_CONFIG)."
@@ -45,13 +51,13 @@ def _endpoints(connect: str | None) -> list[str]:
     return [connect or default_endpoint()]
 
 
-def _zenoh_config(path: Path | None):
+def _zenoh_config(path: Path | None) -> Path | None:
     from fleet.control.session import config_file
 
     return config_file(path)
 
 
-def _client(connect: str | None, zenoh_config: Path | None):
+def _client(connect: str | None, zenoh_config: Path | None) -> ControlClient:
     from fleet.control.client import ControlClient
 
     return ControlClient(_endpoints(connect), _zenoh_config(zenoh_config))
@@ -170,6 +176,7 @@ def down(
                 statuses, registries = client.status(None)
                 fleets = sorted({s.fleet for s in statuses if s.fleet} | {r.fleet for r in registries})
             else:
+                assert fleet is not None  # refused above unless --all
                 fleets = [fleet]
             for name in fleets:
                 replies = deploying.down(client, name)
@@ -248,7 +255,7 @@ class _DeployProgress:
 
     def __init__(self, console, enabled: bool):
         self.enabled = enabled
-        self.tasks: dict[str, int] = {}
+        self.tasks: dict[str, TaskID] = {}
         self.progress = None
         if enabled:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -582,7 +589,7 @@ def _generation_time(generation: int) -> str:
 # Logs and parameters
 
 
-def _locate(client, robot: str, fleet: str | None):
+def _locate(client: ControlClient, robot: str, fleet: str | None) -> tuple[str, str]:
     """(fleet, agent) running `robot`, from one status query."""
     from fleet.control.view import build_view
     from fleet.errors import ControlError, FleetError
@@ -640,7 +647,7 @@ def _parse_value(text: str):
         raise FleetError(f"cannot parse value {text!r}: {error}") from None
 
 
-def _param(robot: str, node: str, name: str, op: str, value, fleet, connect, zenoh_config):
+def _param(robot: str, node: str, name: str, op: Literal["get", "set"], value, fleet, connect, zenoh_config):
     from fleet.control import protocol as p
     from fleet.errors import FleetError
 

@@ -13,6 +13,8 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
     world = expansion.bundle("world")
     robots = []
     for plan in expansion.robots:
+        bundle = expansion.bundle(plan.name)
+        assert bundle is not None  # every robot has its bundle
         effective = plan.parameters
         parameters: dict[str, dict[str, Any]] = {}
         for (node, name), settings in effective.history.items():
@@ -38,7 +40,7 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
                     for node in plan.outline.nodes
                 ],
                 "parameters": parameters,
-                "digest": expansion.bundle(plan.name).digest,
+                "digest": bundle.digest,
             }
         )
     return {
@@ -50,7 +52,7 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
             for name, agent in spec.agents.items()
         },
         "world": None
-        if world is None
+        if world is None or spec.world is None  # a world bundle comes from the spec's world
         else {"agent": world.agent, "obstacles": len(spec.world.obstacles), "digest": world.digest},
         "robots": robots,
         "warnings": expansion.warnings,

@@ -31,7 +31,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fleet import __version__
 from fleet.control import protocol as p
@@ -40,6 +40,9 @@ from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
 from fleet.control.state import AgentStore, FleetState
 from fleet.control.units import UNIT_MARKER, Unit
 from fleet.files import write_atomic
+
+if TYPE_CHECKING:
+    import zenoh
 
 log = logging.getLogger("fleet.agent")
 
@@ -92,7 +95,7 @@ class Agent:
         # Parameter calls take seconds (an rclpy helper process): their own pool, so status and
         # apply never queue behind them.
         self._slow_requests = ThreadPoolExecutor(max_workers=2, thread_name_prefix="fleet-agent-param")
-        self._session = None
+        self._session: zenoh.Session | None = None
         self.stop_event = threading.Event()
 
     # -- life cycle ------------------------------------------------------------------------------
@@ -222,7 +225,7 @@ class Agent:
                 p.desired_key("*", self.name),
                 payload=p.encode(p.DesiredQuery(held=held)),
                 target=zenoh.QueryTarget.ALL,
-                consolidation=zenoh.QueryConsolidation(zenoh.ConsolidationMode.NONE),
+                consolidation=zenoh.ConsolidationMode.NONE,
                 timeout=DESIRED_TIMEOUT,
             )
             for reply in replies:
@@ -263,7 +266,7 @@ class Agent:
             if request.generation < held_generation:
                 reply.reason = f"superseded: this agent already holds generation {held_generation}"
                 return reply
-            if request.generation == held_generation and held.request.bundles != request.bundles:
+            if held is not None and request.generation == held_generation and held.request.bundles != request.bundles:
                 reply.reason = f"generation {held_generation} was already applied with other content"
                 return reply
             current = {b.name: b for b in held.request.bundles} if held else {}

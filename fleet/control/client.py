@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fleet.control import protocol as p
 from fleet.control.session import open_client
 from fleet.errors import ControlError
+
+if TYPE_CHECKING:
+    import zenoh
 
 STATUS_TIMEOUT = 3.0
 APPLY_TIMEOUT = 10.0
@@ -33,7 +38,9 @@ class ControlClient:
 
     # -- status ---------------------------------------------------------------------------------
 
-    def status(self, fleet: str | None = None, timeout: float = STATUS_TIMEOUT):
+    def status(
+        self, fleet: str | None = None, timeout: float = STATUS_TIMEOUT
+    ) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
         """One wildcard get: a reply from every agent (per fleet it serves) and from the registry."""
         import zenoh
 
@@ -42,7 +49,7 @@ class ControlClient:
         replies = self.session.get(
             p.status_query(fleet),
             target=zenoh.QueryTarget.ALL,
-            consolidation=zenoh.QueryConsolidation(zenoh.ConsolidationMode.NONE),
+            consolidation=zenoh.ConsolidationMode.NONE,
             timeout=timeout,
         )
         for reply in replies:
@@ -61,7 +68,9 @@ class ControlClient:
 
     # -- requests to one agent ------------------------------------------------------------------
 
-    def send_applies(self, requests: list[p.ApplyRequest], timeout: float = APPLY_TIMEOUT):
+    def send_applies(
+        self, requests: list[p.ApplyRequest], timeout: float = APPLY_TIMEOUT
+    ) -> dict[str, p.ApplyReply | ControlError]:
         """Send every apply at once, then collect: agent -> ApplyReply | ControlError."""
         pending = []
         for request in requests:
@@ -77,7 +86,9 @@ class ControlClient:
                 results[agent] = error
         return results
 
-    def request(self, key: str, message: p.Message, model: type[p.Message], what: str, timeout: float = 20.0):
+    def request(
+        self, key: str, message: p.Message, model: type[p.MessageT], what: str, timeout: float = 20.0
+    ) -> p.MessageT:
         handler = self.session.get(key, payload=p.encode(message), timeout=timeout)
         return _one_reply(handler, model, what)
 
@@ -103,17 +114,19 @@ def _kind(data: bytes) -> str | None:
         return None
 
 
-def _one_reply(handler, model, what: str):
+def _one_reply(handler: Iterable[zenoh.Reply], model: type[p.MessageT], what: str) -> p.MessageT:
     for reply in handler:
         if reply.ok is not None:
             try:
                 return p.decode(reply.ok.payload.to_bytes(), model)
             except p.ProtocolError as error:
                 raise ControlError(f"{what} answered: {error}") from None
-        raw = reply.err.payload.to_bytes()
+        failure = reply.err
+        assert failure is not None  # a reply without a sample carries an error
+        raw = failure.payload.to_bytes()
         try:
-            error = p.decode(raw, p.ErrorReply)
-            raise ControlError(f"{what} refused the request: {error.error}")
+            refusal = p.decode(raw, p.ErrorReply)
+            raise ControlError(f"{what} refused the request: {refusal.error}")
         except p.ProtocolError:
             raise ControlError(f"{what}: {raw.decode('utf-8', 'replace')}") from None
     raise ControlError(f"{what} is unreachable (not connected to the router, or it timed out)")

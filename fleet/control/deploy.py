@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from fleet.control import protocol as p
 from fleet.control.client import ControlClient
@@ -16,6 +17,9 @@ from fleet.control.view import FleetView, RobotRow, build_view
 from fleet.dataplane.discovery import DiscoveryPlan, local_servers, plan_discovery
 from fleet.dataplane.topics import bridge_routes
 from fleet.errors import ControlError
+
+if TYPE_CHECKING:
+    from fleet.expand.expansion import Expansion
 
 POLL_INTERVAL = 0.1
 
@@ -26,12 +30,12 @@ def new_generation() -> int:
 
 
 def requests_for(
-    expansion, generation: int, serving: set[str], discovery: DiscoveryPlan | None = None
+    expansion: Expansion, generation: int, serving: set[str], discovery: DiscoveryPlan | None = None
 ) -> list[p.ApplyRequest]:
     """A complete desired state for every agent with bundles, and an empty one for agents that
     run this fleet now but get nothing from this spec (so they stop its robots).  `discovery`
     says where the fleet's DDS discovery server runs (None: nowhere, nodes stay on their computer)."""
-    by_agent: dict[str, list] = {}
+    by_agent: dict[str, list[p.BundleMessage]] = {}
     for bundle in expansion.bundles:
         by_agent.setdefault(bundle.agent, []).append(p.BundleMessage.from_bundle(bundle))
     for agent in serving:
@@ -61,7 +65,7 @@ def requests_for(
     return requests
 
 
-def _world_agent(expansion) -> str | None:
+def _world_agent(expansion: Expansion) -> str | None:
     return next((bundle.agent for bundle in expansion.bundles if bundle.kind == "world"), None)
 
 
@@ -80,7 +84,7 @@ def with_planned_agents(
     ]
 
 
-def discovery_for(expansion, view: FleetView) -> DiscoveryPlan:
+def discovery_for(expansion: Expansion, view: FleetView) -> DiscoveryPlan:
     """Where the fleet's discovery server runs, from the agents online in `view` (pure).  With the
     zenoh transport: the world agent's own (the one a test probe on its computer joins)."""
     agents = sorted({bundle.agent for bundle in expansion.bundles})
@@ -91,7 +95,7 @@ def discovery_for(expansion, view: FleetView) -> DiscoveryPlan:
     return plan_discovery(_world_agent(expansion), agents, addresses, expansion.domain_id)
 
 
-def plan_record(expansion, generation: int) -> p.PlanRecord:
+def plan_record(expansion: Expansion, generation: int) -> p.PlanRecord:
     return p.PlanRecord(
         fleet=expansion.fleet,
         generation=generation,
@@ -108,7 +112,7 @@ class DiffRow:
     detail: str = ""
 
 
-def diff(expansion, view: FleetView) -> list[DiffRow]:
+def diff(expansion: Expansion, view: FleetView) -> list[DiffRow]:
     """What a deploy of `expansion` would change, robot by robot (live overrides shown as drift)."""
     current = {row.name: row for row in view.robots_of(expansion.fleet)}
     rows = []
@@ -178,7 +182,7 @@ class Outcome:
 
 def deploy(
     client: ControlClient,
-    expansion,
+    expansion: Expansion,
     wait: bool = True,
     timeout: float = 60.0,
     on_progress: Callable[[list[RobotRow]], None] | None = None,

@@ -29,13 +29,14 @@ import hashlib
 import ipaddress
 import json
 import re
-from typing import Any, Literal
+from collections.abc import Mapping
+from typing import Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from fleet.dataplane.topics import BridgeRoutes
+from fleet.dataplane.topics import BridgeRoutes as BridgeRoutes  # part of the protocol (ApplyRequest.bridge)
 
-VERSION = 1
+VERSION: Final = 1
 
 # Limits: far above a real robot's launch description, far below what could hurt an agent.
 MAX_MESSAGE_BYTES = 8 * 1024 * 1024
@@ -55,7 +56,7 @@ _KEY_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,62}")
 def address_problem(address: object) -> str | None:
     """None when `address` is an IPv4 address (what an agent reports and DDS listens on)."""
     try:
-        ipaddress.IPv4Address(address)  # type: ignore[arg-type]
+        ipaddress.IPv4Address(address)
     except (ipaddress.AddressValueError, ValueError, TypeError):
         return f"{address!r} is not an IPv4 address (such as 10.0.0.5)"
     return None
@@ -423,7 +424,7 @@ class WorldSummary(WorldData):
     sim_time: float = 0.0
     real_time_factor: float = 0.0
     age: float | None = None  # seconds since the world wrote this (set by its agent, same clock)
-    robots: dict[str, WorldRobot] = {}
+    robots: Mapping[str, WorldRobot] = {}
     contacts: Contacts = Contacts()
     errors: list[WorldProblem] = []
 
@@ -466,7 +467,7 @@ class WorldDocument(WorldSummary):
     fleet: str = ""
     wall_time: float | None = None
     physics_rate: float | None = None
-    robots: dict[str, WorldRobotFull] = {}
+    robots: Mapping[str, WorldRobotFull] = {}
     obstacles: list[Obstacle] = []
 
 
@@ -623,7 +624,10 @@ def encode(message: BaseModel) -> bytes:
     return message.model_dump_json().encode()
 
 
-def decode(payload: bytes | None, model: type[Message]) -> Any:
+MessageT = TypeVar("MessageT", bound=Message)
+
+
+def decode(payload: bytes | None, model: type[MessageT]) -> MessageT:
     """Parse and validate one message; raise ProtocolError with a readable reason."""
     if payload is None:
         raise ProtocolError("empty message", "malformed")
@@ -639,8 +643,8 @@ def decode(payload: bytes | None, model: type[Message]) -> Any:
         raise ProtocolError(f"unsupported protocol version {data.get('v')!r} (this side speaks {VERSION})", "version")
     expected_kind = model.model_fields["kind"].default
     if data.get("kind") == "error" and model is not ErrorReply:
-        error = ErrorReply.model_validate(data)
-        raise ProtocolError(error.error, error.code)
+        reply = ErrorReply.model_validate(data)
+        raise ProtocolError(reply.error, reply.code)
     if data.get("kind") != expected_kind:
         raise ProtocolError(f"expected a {expected_kind!r} message, got {data.get('kind')!r}", "malformed")
     try:

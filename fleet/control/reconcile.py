@@ -6,7 +6,9 @@ from fleet.control.protocol import BundleMessage, Changes
 
 
 def plan_changes(
-    current: dict[str, BundleMessage], desired: dict[str, BundleMessage], failed: set[str] = frozenset()
+    current: dict[str, BundleMessage],
+    desired: dict[str, BundleMessage],
+    failed: set[str] | frozenset[str] = frozenset(),
 ) -> Changes:
     """Robots to start, stop, restart, hot-update, or leave alone.
 

@@ -14,8 +14,14 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fleet.errors import ControlError, FleetError
+
+if TYPE_CHECKING:
+    import threading
+
+    import zenoh
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 ENDPOINT_VARIABLE = "FLEET_CONNECT"
@@ -112,7 +118,7 @@ def _common(config, lease_ms: int | None) -> None:
         _set_unless_user_set(config, "transport/link/tx/lease", lease_ms)
 
 
-def open_client(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None):
+def open_client(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None) -> zenoh.Session:
     """Open a client session or raise ControlError (router unreachable or credentials refused)."""
     import zenoh
 
@@ -138,7 +144,9 @@ def _hint(config, endpoints: list[str]) -> str:
     return f"is it running? if it requires credentials or TLS, give them with --zenoh-config or ${CONFIG_VARIABLE}"
 
 
-def open_client_retrying(connect: list[str], user_config: Path | None, lease_ms: int | None, stop) -> object | None:
+def open_client_retrying(
+    connect: list[str], user_config: Path | None, lease_ms: int | None, stop: threading.Event
+) -> zenoh.Session | None:
     """For daemons: retry until the router answers (or `stop` is set, then None)."""
     delay = 0.2
     while not stop.is_set():

@@ -10,15 +10,26 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from fleet.control.protocol import BundleMessage, NodeState, RobotState, WorldSummary, check_file_name, world_summary
+from fleet.control.protocol import (
+    BundleMessage,
+    NodeState,
+    RobotState,
+    RobotStateName,
+    WorldSummary,
+    check_file_name,
+    world_summary,
+)
 from fleet.files import write_atomic
 
 UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
 WORLD_STATUS_FILE = "world.status.json"  # written by the world next to world.yaml (templates/world.launch.yaml.j2)
+
+if TYPE_CHECKING:
+    from fleet.runtime.supervisor import LaunchSession
 
 
 class Unit:
@@ -28,7 +39,7 @@ class Unit:
         self.directory = directory
         self.env = env
         self.generation = 0
-        self.session = None
+        self.session: LaunchSession | None = None
         self.error = ""
         self.seen_running = False
 
@@ -74,7 +85,7 @@ class Unit:
                 launch_args={},
                 env=self.env,
                 log_dir=self.log_dir,
-                isolation=self.bundle.options.get("isolation", "process"),
+                isolation=str(self.bundle.options.get("isolation", "process")),
                 backend="auto",
             )
             self.session.start()
@@ -94,6 +105,7 @@ class Unit:
             return []
         states = []
         for node in self.session.status():
+            assert node.name is not None  # fleet's launch files name every node (fleet.expand.outline)
             states.append(
                 NodeState(
                     name=node.name,
@@ -111,6 +123,7 @@ class Unit:
         nodes = self.node_states()
         running = sum(1 for node in nodes if node.state == "running")
         total = len(nodes)
+        state: RobotStateName
         if self.error:
             state = "failed"
         elif self.session is None:

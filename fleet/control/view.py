@@ -138,14 +138,14 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
 
     for status in statuses:
         info = status.agent
-        row = agents.setdefault(
+        agent_row = agents.setdefault(
             info.name,
             AgentRow(info.name, True, 0.0, info.hostname, info.cores, list(info.backends), address=info.address),
         )
         if status.fleet is None:
             continue
-        if status.fleet not in row.fleets:
-            row.fleets.append(status.fleet)
+        if status.fleet not in agent_row.fleets:
+            agent_row.fleets.append(status.fleet)
         generations[(status.fleet, info.name)] = status.generation
         if status.domain_id is not None:
             domain_ids[status.fleet] = status.domain_id
@@ -183,20 +183,20 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 agents[name].fleets.append(registry.fleet)
         if registry.plan is None:
             continue
-        for robot, agent in registry.plan.robots.items():
-            if (registry.fleet, robot) in robots:
+        for robot_name, agent in registry.plan.robots.items():
+            if (registry.fleet, robot_name) in robots:
                 continue
             if agent not in agents:
                 agents[agent] = AgentRow(agent, False, None, fleets=[registry.fleet])
             state = "pending" if agents[agent].online else "offline"
-            kind = "world" if robot == "world" else "robot"
-            row = RobotRow(registry.fleet, robot, kind, agent, state)
+            kind = "world" if robot_name == "world" else "robot"
+            row = RobotRow(registry.fleet, robot_name, kind, agent, state)
             if state == "offline":
-                seen = agents[agent].last_seen
+                last_seen = agents[agent].last_seen
                 row.reason = f"agent {agent} does not answer" + (
-                    "" if seen is None else f" (last seen {seen:.0f} s ago)"
+                    "" if last_seen is None else f" (last seen {last_seen:.0f} s ago)"
                 )
-            robots[(registry.fleet, robot)] = row
+            robots[(registry.fleet, robot_name)] = row
 
     for (fleet, name), row in robots.items():
         world_robot = worlds[fleet][1].robots.get(name) if fleet in worlds else None
@@ -262,7 +262,9 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSumma
     for row in rows:
         if row.kind != "robot" or row.state != "running":
             continue
-        problem = world_problem or _robot_flow_problem(row, summary)
+        problem = world_problem
+        if problem is None and summary is not None:  # without a summary there is a world problem
+            problem = _robot_flow_problem(row, summary)
         if problem is None:
             continue
         # Just started and never heard by the world: still coming up.  Once its data has flowed

@@ -6,6 +6,7 @@ failed `fleet render` or `fleet deploy` leaves nothing half-written or half-depl
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,16 +17,19 @@ from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, outline
-from fleet.expand.parameters import ParameterLayers, check_type_stable, parse_override
+from fleet.expand.parameters import Override, ParameterLayers, check_type_stable, parse_override
 from fleet.expand.python_launch import python_launch_source
 from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference
 from fleet.expand.templating import TemplateSet, builtin_template_dirs
 from fleet.spec.model import FleetSpec, Model, Robot
 from fleet.spec.params import unflatten
-from fleet.spec.yaml_source import SourceMap, load_yaml, safe_load
+from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, safe_load
 
 WORLD = "world"
 WORLD_TEMPLATE = "world"
+
+# Parameter layers shared by the robots of one template and node set.
+SharedLayers = dict[tuple[str, frozenset[str]], ParameterLayers]
 
 
 @dataclass
@@ -87,7 +91,7 @@ def template_set_for(spec: FleetSpec) -> TemplateSet:
 def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Expansion:
     templates = template_set_for(spec)
     overrides = [parse_override(text) for text in sets]
-    shared_layers: dict[tuple, ParameterLayers] = {}  # per template and node set
+    shared_layers: SharedLayers = {}  # per template and node set
     renderer = LaunchRenderer(templates, spec.fleet)
     robots = [
         _plan_robot(spec, index, robot, templates, renderer, shared_layers) for index, robot in enumerate(spec.robots)
@@ -110,19 +114,20 @@ def _plan_robot(
     robot: Robot,
     templates: TemplateSet,
     renderer: LaunchRenderer,
-    shared_layers: dict[tuple, ParameterLayers],
+    shared_layers: SharedLayers,
 ) -> RobotPlan:
     template = robot.template or spec.defaults.template
     namespace = robot.namespace or f"/{robot.name}"
     arguments = {**spec.defaults.launch_args, **robot.launch_args}
     model = _model_of(spec, robot)
+    pose = robot.pose.model_dump()
     context = {
         "robot": {
             "name": robot.name,
             "namespace": namespace,
             "agent": robot.agent or spec.defaults.agent,
             "model": model.model_dump(),
-            "pose": robot.pose.model_dump(),
+            "pose": pose,
         },
         "fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time},
         "params_file": params_file_reference(robot.name),
@@ -148,7 +153,7 @@ def _plan_robot(
                 f"(nodes: {', '.join(sorted(node_names))})",
                 _spec_location(spec, ("robots", index, "parameters", node)),
             )
-        layers.add(node, values, "robot", lambda key, node=node: spec.where("robots", index, "parameters", node, *key))
+        layers.add(node, values, "robot", _spec_place(spec, "robots", index, "parameters", node))
     return RobotPlan(
         name=robot.name,
         namespace=namespace,
@@ -156,7 +161,7 @@ def _plan_robot(
         template=template,
         isolation=robot.isolation or spec.defaults.isolation,
         model=model,
-        pose=context["robot"]["pose"],
+        pose=pose,
         outline=shape,
         parameters=layers,
         launch_args={k: str(v) for k, v in arguments.items()},
@@ -166,7 +171,7 @@ def _plan_robot(
 
 
 def _shared_layers(
-    spec: FleetSpec, templates: TemplateSet, template: str, node_names: frozenset[str], cache: dict
+    spec: FleetSpec, templates: TemplateSet, template: str, node_names: frozenset[str], cache: SharedLayers
 ) -> ParameterLayers:
     """The template's defaults and the spec's defaults: the same for every robot of a template,
     so merged once per template and node set, and copied per robot."""
@@ -182,18 +187,27 @@ def _shared_layers(
                 f"(nodes: {', '.join(sorted(node_names))})",
                 Location(defaults_file),
             )
-        layers.add(node, values, "template", lambda key, node=node: str(defaults_source.locate((node, *key))))
+        assert defaults_source is not None  # there are defaults only when read from a file
+        layers.add(node, values, "template", _file_place(defaults_source, node))
     for node, values in spec.defaults.parameters.items():
         if node in node_names:
-            layers.add(
-                node, values, "defaults", lambda key, node=node: spec.where("defaults", "parameters", node, *key)
-            )
+            layers.add(node, values, "defaults", _spec_place(spec, "defaults", "parameters", node))
     layers.template_defaults = defaults
     cache[key] = layers
     return layers
 
 
-def _spec_location(spec: FleetSpec, path: tuple) -> Location:
+def _spec_place(spec: FleetSpec, *prefix: Any) -> Callable[[DocPath], str]:
+    """Where a parameter below `prefix` is written in the spec, from its key path there."""
+    return lambda key: spec.where(*prefix, *key)
+
+
+def _file_place(source: SourceMap, *prefix: Any) -> Callable[[DocPath], str]:
+    """Where a parameter below `prefix` is written in a YAML file, from its key path there."""
+    return lambda key: str(source.locate((*prefix, *key)))
+
+
+def _spec_location(spec: FleetSpec, path: DocPath) -> Location:
     if spec._source_map is None:
         return Location(spec.source_file)
     return spec._source_map.locate(path, key=True)
@@ -210,7 +224,9 @@ def _parse_rendered(text: str, template_file: Path, unit: str) -> Any:
         ) from None
 
 
-def _template_defaults(templates: TemplateSet, template: str) -> tuple[dict, Path | None, SourceMap | None]:
+def _template_defaults(
+    templates: TemplateSet, template: str
+) -> tuple[dict[str, dict[str, Any]], Path | None, SourceMap | None]:
     path = templates.defaults_file(template)
     if path is None:
         return {}, None, None
@@ -225,7 +241,7 @@ def _template_defaults(templates: TemplateSet, template: str) -> tuple[dict, Pat
     return data, path, source
 
 
-def _apply_overrides(spec: FleetSpec, robots: list[RobotPlan], overrides: list) -> None:
+def _apply_overrides(spec: FleetSpec, robots: list[RobotPlan], overrides: list[Override]) -> None:
     by_name = {plan.name: plan for plan in robots}
     for override in overrides:
         where = Location(f"--set {override.text}")
@@ -313,6 +329,7 @@ def world_description(spec: FleetSpec) -> dict[str, Any]:
         if obstacle.type == "cylinder":
             entry.update(radius=obstacle.radius, height=obstacle.height)
         else:
+            assert obstacle.size is not None  # Obstacle's validator: boxes and walls have a size
             entry["size"] = list(obstacle.size)
         obstacles.append(entry)
     return {
@@ -338,6 +355,7 @@ def _world_bundle(spec: FleetSpec, templates: TemplateSet) -> Bundle:
         "world.launch.py": python_launch_source(launch, f"The shared world of fleet {spec.fleet}, generated by fleet."),
         "world.yaml": header + yaml_emit.emit(world_description(spec)),
     }
+    assert spec.world is not None
     agent = spec.world.agent or spec.defaults.agent
     return Bundle(
         name=WORLD,

@@ -63,7 +63,9 @@ def outline(data: Any, where: Location) -> LaunchOutline:
     return LaunchOutline(arguments=arguments, nodes=tuple(nodes))
 
 
-def _walk(actions: list, namespace: str, arguments: dict, nodes: list, where: Location, top: bool) -> None:
+def _walk(
+    actions: list[Any], namespace: str, arguments: dict[str, str], nodes: list[NodeOutline], where: Location, top: bool
+) -> None:
     for action in actions:
         if not isinstance(action, dict) or len(action) != 1:
             raise TemplateError(f"each launch action must be a mapping with one key, got {action!r:.60}", where)

@@ -16,7 +16,7 @@ from typing import Any
 
 from fleet.errors import Location, SpecError
 from fleet.spec.params import coerce_like, flatten, normalize, value_problem
-from fleet.spec.yaml_source import parse_scalar
+from fleet.spec.yaml_source import DocPath, parse_scalar
 
 LAYERS = ("template", "defaults", "robot", "--set")
 
@@ -73,7 +73,7 @@ class ParameterLayers:
         other.template_defaults = self.template_defaults
         return other
 
-    def add(self, node: str, parameters: dict[str, Any], layer: str, source: Callable[[tuple], str]) -> None:
+    def add(self, node: str, parameters: dict[str, Any], layer: str, source: Callable[[DocPath], str]) -> None:
         """Add a layer's values; source(key_path) says where each one is written (located lazily:
         a big fleet has tens of thousands of values and only --explain and errors show places)."""
         for name, (key_path, value) in flatten(parameters).items():

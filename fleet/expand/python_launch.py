@@ -27,21 +27,21 @@ def generate_launch_description():
 """
 
 
-def python_launch_source(launch: dict, comment: str) -> str:
+def python_launch_source(launch: dict[str, Any], comment: str) -> str:
     """Python source of a launch file doing what the YAML `launch` document does."""
     comment_lines = "\n".join(f"# {line}".rstrip() for line in comment.splitlines())
     body = _actions(launch["launch"], indent=8)
     return _HEADER.format(comment=comment_lines) + body + "\n    )\n"
 
 
-def _actions(actions: list, indent: int) -> str:
+def _actions(actions: list[Any], indent: int) -> str:
     pad = " " * indent
     items = [_action(action, indent + 4) for action in actions]
     inner = "".join(f"{' ' * (indent + 4)}{item},\n" for item in items)
     return f"{pad}[\n{inner}{pad}]"
 
 
-def _action(action: dict, indent: int) -> str:
+def _action(action: dict[str, Any], indent: int) -> str:
     ((kind, body),) = action.items()
     if kind == "group":
         children = body if isinstance(body, list) else body.get("actions", [])
@@ -70,7 +70,7 @@ def _action(action: dict, indent: int) -> str:
     raise ValueError(f"no Python equivalent emitted for launch action {kind!r}")
 
 
-def _node(body: dict, indent: int) -> str:
+def _node(body: dict[str, Any], indent: int) -> str:
     pad = " " * (indent + 4)
     lines = [f"package={_expr(body['pkg'])}", f"executable={_expr(body['exec'])}"]
     if "name" in body:
@@ -100,7 +100,7 @@ def _node(body: dict, indent: int) -> str:
     return f"Node(\n{inner}{' ' * indent})"
 
 
-def _parameters(items: list) -> list[str]:
+def _parameters(items: list[dict[str, Any]]) -> list[str]:
     """Files in order, then all inline name/value pairs as one dict: what launch_ros's YAML
     frontend builds from `param:` entries, so both files produce the same command line."""
     files = [_expr(item["from"]) for item in items if "from" in item]

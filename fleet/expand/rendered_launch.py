@@ -52,7 +52,7 @@ class LaunchRenderer:
     def __init__(self, templates: TemplateSet, fleet: str):
         self.templates = templates
         self.fleet = fleet
-        self._shapes: dict[tuple, RenderedLaunch] = {}
+        self._shapes: dict[tuple[str, tuple[tuple[str, str], ...]], RenderedLaunch] = {}
 
     def render(
         self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location
@@ -80,7 +80,9 @@ class LaunchRenderer:
             )
         return self._parse(template, context, arguments, where, name)
 
-    def _parse(self, template: str, context: dict, arguments: dict, where: Location, robot: str) -> RenderedLaunch:
+    def _parse(
+        self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location, robot: str
+    ) -> RenderedLaunch:
         rendered = self.templates.render(template, context, arguments, where)
         try:
             document = safe_load(rendered.text)

@@ -56,11 +56,12 @@ class ParamSpec:
     def descriptor(self) -> ParameterDescriptor:
         param_type = Parameter.Type.from_parameter_value(self.default)
         descriptor = ParameterDescriptor(name=self.name, type=param_type.value, description=self.description)
-        if self.low is not None and param_type == Parameter.Type.DOUBLE:
+        # Bounds come in pairs (low and high, or neither).
+        if self.low is not None and self.high is not None and param_type == Parameter.Type.DOUBLE:
             descriptor.floating_point_range = [
                 FloatingPointRange(from_value=float(self.low), to_value=float(self.high), step=0.0)
             ]
-        elif self.low is not None and param_type == Parameter.Type.INTEGER:
+        elif self.low is not None and self.high is not None and param_type == Parameter.Type.INTEGER:
             descriptor.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=0)]
         return descriptor
 

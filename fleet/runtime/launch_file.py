@@ -76,11 +76,12 @@ class LaunchPlan:
 # YAML with line numbers
 
 
-class _Map(dict):
-    """A YAML mapping that remembers where it and each of its keys start (1-based lines)."""
+class _Map(dict[Any, Any]):
+    """A YAML mapping that remembers where it and each of its keys start (1-based lines).
+    _LineLoader builds every mapping as one."""
 
     line: int | None = None
-    key_lines: dict
+    key_lines: dict[Any, int]
 
 
 class _LineLoader(yaml.SafeLoader):
@@ -253,8 +254,8 @@ class _Node(_Action):
     executable: _Parts
     name: _Parts | None
     namespace: _Parts | None
-    params: list
-    remaps: list  # list of (parts, parts)
+    params: list[_ParamFile | _InlineParam]
+    remaps: list[tuple[_Parts, _Parts]]
     args: _Parts | None
     ros_args: _Parts | None
     respawn: _Parts | None
@@ -303,7 +304,7 @@ class _Reader:
             line = mark.line + 1 if mark is not None else None
             reason = getattr(problem, "problem", None) or str(problem)
             raise self.error(f"invalid YAML: {reason}", line) from None
-        if not isinstance(data, dict) or set(data) != {"launch"}:
+        if not isinstance(data, _Map) or set(data) != {"launch"}:
             raise self.error("a launch file is a mapping with the single key 'launch'", 1)
         actions = data["launch"]
         if not isinstance(actions, list):
@@ -313,7 +314,7 @@ class _Reader:
     def actions(self, items: list, line: int | None) -> list:
         result = []
         for item in items:
-            if not isinstance(item, dict) or len(item) != 1:
+            if not isinstance(item, _Map) or len(item) != 1:
                 raise self.error(
                     "each action is a mapping with exactly one key, the action type",
                     getattr(item, "line", line),
@@ -329,7 +330,7 @@ class _Reader:
         if kind == "group" and isinstance(body, list):
             body = _Map(children=body)
             body.line, body.key_lines = line, {"children": line}
-        if not isinstance(body, dict):
+        if not isinstance(body, _Map):
             raise self.error(f"action '{kind}' needs a mapping of attributes", line)
         body_line = body.line or line
         unknown = set(body) - _ACTION_KEYS[kind] - _COMMON_KEYS
@@ -358,7 +359,7 @@ class _Reader:
             return _Group(line, condition, self.actions(children, body_line), scoped)
         return self.node(line, condition, attrs, body)
 
-    def condition(self, kind: str, body: dict) -> _Condition | None:
+    def condition(self, kind: str, body: _Map) -> _Condition | None:
         if "if" in body and "unless" in body:
             raise self.error(f"'if' and 'unless' cannot both be used on '{kind}'", body.line)
         for keyword in ("if", "unless"):
@@ -367,7 +368,7 @@ class _Reader:
                 return _Condition(keyword, attrs.parts(keyword))
         return None
 
-    def node(self, line: int, condition: _Condition | None, attrs: _Attributes, body) -> _Node:
+    def node(self, line: int, condition: _Condition | None, attrs: _Attributes, body: _Map) -> _Node:
         delay = body.get("respawn_delay", 0.0)
         if "respawn_delay" in body and (not isinstance(delay, float) or delay < 0.0):
             raise self.error(
@@ -391,14 +392,14 @@ class _Reader:
             output=attrs.optional("output"),
         )
 
-    def _items(self, body: dict, key: str) -> list:
+    def _items(self, body: _Map, key: str) -> list[_Map]:
         items = body.get(key, [])
-        if not isinstance(items, list) or not all(isinstance(item, dict) for item in items):
+        if not isinstance(items, list) or not all(isinstance(item, _Map) for item in items):
             raise self.error(f"'{key}' of 'node' must be a list of mappings", body.key_lines[key])
         return items
 
-    def params(self, body: dict) -> list:
-        result = []
+    def params(self, body: _Map) -> list[_ParamFile | _InlineParam]:
+        result: list[_ParamFile | _InlineParam] = []
         for item in self._items(body, "param"):
             keys = set(item)
             attrs = _Attributes(self, "param", item)
@@ -428,7 +429,7 @@ class _Reader:
             line,
         )
 
-    def remaps(self, body: dict) -> list:
+    def remaps(self, body: _Map) -> list[tuple[_Parts, _Parts]]:
         result = []
         for item in self._items(body, "remap"):
             if set(item) != {"from", "to"}:
@@ -450,7 +451,7 @@ class _Reader:
 class _Attributes:
     """Typed access to an action's attributes, with launch_yaml's (non-coercing) type rules."""
 
-    def __init__(self, reader: _Reader, kind: str, body: dict):
+    def __init__(self, reader: _Reader, kind: str, body: _Map):
         self.reader, self.kind, self.body = reader, kind, body
 
     def _line(self, key: str) -> int | None:
@@ -629,7 +630,7 @@ class _Interpreter:
         elif isinstance(action, _PushNamespace):
             pushed = self.resolve(action.namespace, scope, line)
             namespace = _absolute(_prefix_namespace(scope.namespace, pushed))
-            if not _valid_namespace(namespace):
+            if namespace is None or not _valid_namespace(namespace):  # never None: a namespace was pushed
                 raise self.error(f"invalid namespace '{namespace}' (pushed '{pushed}')", line)
             scope.namespace = namespace
         elif isinstance(action, _Group):
@@ -677,7 +678,7 @@ class _Interpreter:
         # launch_ros keys inline parameters by the full node name only when both name and
         # namespace are known; otherwise by the wildcard.
         key = launch.fqn if name is not None and namespace is not None else "/**"
-        params = []
+        params: list[tuple[Any, ...]] = []
         for param in node.params:
             if isinstance(param, _ParamFile):
                 file = self.resolve(param.path, scope, param.line)

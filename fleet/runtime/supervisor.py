@@ -22,7 +22,7 @@ from pathlib import Path
 from fleet.errors import FleetError, LaunchFileError, Location
 from fleet.runtime import ament
 from fleet.runtime.isolation import ISOLATIONS, ProcessSpec, plan_processes
-from fleet.runtime.launch_file import LaunchPlan, load_launch_file
+from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, load_launch_file
 from fleet.runtime.node_log import ProcessOutput
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
@@ -168,7 +168,7 @@ class LaunchSession:
         with self._lock:
             for process in self._processes:
                 uptime = now - process.started_at if process.state == RUNNING else 0.0
-                nodes = process.spec.nodes or [None]
+                nodes: list[NodeLaunch | None] = list(process.spec.nodes) or [None]
                 for node in nodes:
                     result.append(
                         NodeStatus(
@@ -329,7 +329,7 @@ class LaunchSession:
                 if stage > signals_sent:
                     signum = {1: signal.SIGINT, 2: signal.SIGTERM, 3: signal.SIGKILL}[stage]
                     for process in self._processes:
-                        if not process.finished():
+                        if process.popen is not None and not process.finished():
                             signal_group(process.popen.pid, signum)
                     signals_sent = stage
             self._wake.wait(POLL_INTERVAL)
@@ -359,18 +359,20 @@ class LaunchSession:
             process.exit_code = None
             process.started_at = time.monotonic()
             process.restart_at = None
+        assert popen.stdout is not None  # spawn() pipes the output when given no file
         process.pump = process.output.follow(popen.stdout)
 
     def _check(self, process: _Supervised, now: float) -> bool:
         """Notice an exit and decide on a respawn (called with the lock held).  Returns True
         when the process is due to be started again."""
-        if process.state in (RUNNING, STOPPING) and process.popen.poll() is not None:
-            process.exit_code = process.popen.returncode
+        popen = process.popen
+        if process.state in (RUNNING, STOPPING) and popen is not None and popen.poll() is not None:
+            process.exit_code = popen.returncode
             if self._stop_requested:
                 process.state = STOPPED
                 return False
             # The node is gone; whatever it left in its group goes too.
-            signal_group(process.popen.pid, signal.SIGKILL)
+            signal_group(popen.pid, signal.SIGKILL)
             if not process.spec.respawn:
                 process.state = EXITED if process.exit_code == 0 else FAILED
                 return False
@@ -383,7 +385,7 @@ class LaunchSession:
         elif process.state == BACKOFF:
             if self._stop_requested:
                 process.state = STOPPED
-            elif now >= process.restart_at:
+            elif process.restart_at is not None and now >= process.restart_at:
                 process.restarts += 1
                 return True
         return False

@@ -14,7 +14,7 @@ from fleet.errors import Location, SpecError
 from fleet.spec.model import FleetSpec
 from fleet.spec.names import key_name_problem, namespace_problem, ros_name_problem
 from fleet.spec.params import flatten, value_problem
-from fleet.spec.yaml_source import SourceMap, load_yaml
+from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml
 
 
 def load_spec(path: str | Path) -> FleetSpec:
@@ -46,7 +46,7 @@ def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
 def check_spec(spec: FleetSpec, source: SourceMap) -> None:
     """Rules that span fields: names, references between sections, parameter values."""
 
-    def fail(message: str, path: tuple, key: bool = False) -> None:
+    def fail(message: str, path: DocPath, key: bool = False) -> None:
         raise SpecError(message, source.locate(path, key=key))
 
     if problem := key_name_problem(spec.fleet):
@@ -55,7 +55,7 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
         if problem := key_name_problem(agent):
             fail(f"agent name {problem}", ("agents", agent), key=True)
 
-    def check_agent(name: str, path: tuple) -> None:
+    def check_agent(name: str, path: DocPath) -> None:
         if name not in spec.agents:
             fail(f"agent {name!r} is not declared under 'agents' (declared: {', '.join(spec.agents) or 'none'})", path)
 
@@ -96,7 +96,7 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
             names.add(obstacle.name)
 
 
-def check_launch_args(arguments: dict[str, Any], path: tuple, source: SourceMap) -> None:
+def check_launch_args(arguments: dict[str, Any], path: DocPath, source: SourceMap) -> None:
     """Launch argument values land in launch files, where `$(...)` is evaluated by `ros2 launch`
     (`$(command ...)` even runs a shell): such values are refused, never emitted."""
     for name, value in arguments.items():
@@ -109,7 +109,7 @@ def check_launch_args(arguments: dict[str, Any], path: tuple, source: SourceMap)
             )
 
 
-def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source: SourceMap) -> None:
+def check_parameters(parameters: dict[str, dict[str, Any]], path: DocPath, source: SourceMap) -> None:
     """Node names are ROS names; every (nested) parameter value is one ROS can hold."""
     for node, values in parameters.items():
         if problem := ros_name_problem(node):
@@ -159,7 +159,7 @@ def _is_pydantic_branch(part: Any) -> bool:
     return isinstance(part, str) and ("[" in part or part in ("tuple",))
 
 
-def _parent(loc: tuple) -> str:
+def _parent(loc: DocPath) -> str:
     parts = [str(p) if not isinstance(p, int) else f"[{p}]" for p in loc[:-1]]
     return ".".join(parts).replace(".[", "[")
 
@@ -174,7 +174,7 @@ def _describe(value: Any) -> str:
     return f"{type(value).__name__} {value!r}"
 
 
-def _fields_at(loc: tuple) -> list[str]:
+def _fields_at(loc: DocPath) -> list[str]:
     """Field names of the model found at `loc` in the spec schema (for did-you-mean)."""
     annotation: Any = FleetSpec
     for part in loc:

@@ -6,8 +6,10 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
+from fleet.spec.yaml_source import SourceMap
 
-def _ints_to_floats(data: Any, keep: set[str] = frozenset()) -> Any:
+
+def _ints_to_floats(data: Any, keep: frozenset[str] = frozenset()) -> Any:
     """Strict mode refuses `x: 1` for a float; people write that, so promote ints (not bools)."""
     if not isinstance(data, dict):
         return data
@@ -165,7 +167,7 @@ class FleetSpec(Strict):
 
     # Filled by the loader: where the spec came from (not part of the YAML).
     source_file: str = Field("<spec>", exclude=True)
-    _source_map: Any = PrivateAttr(None)  # fleet.spec.yaml_source.SourceMap of the file
+    _source_map: SourceMap | None = PrivateAttr(None)  # positions in the spec file
 
     def where(self, *path: Any) -> str:
         """`file:line:col` of a place in the spec, for messages and --explain."""

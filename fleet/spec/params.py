@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from fleet.spec.yaml_source import DocPath
+
 SCALAR_TYPES = (bool, int, float, str)
 
 
@@ -54,9 +56,9 @@ def _kind(value: Any) -> str:
     return "string"
 
 
-def flatten(parameters: dict, prefix: str = "") -> dict[str, tuple[tuple, Any]]:
+def flatten(parameters: dict[str, Any], prefix: str = "") -> dict[str, tuple[DocPath, Any]]:
     """{"pid": {"kp": 1}} -> {"pid.kp": (("pid", "kp"), 1)}: dotted name -> (key path, value)."""
-    flat: dict[str, tuple[tuple, Any]] = {}
+    flat: dict[str, tuple[DocPath, Any]] = {}
     for key, value in parameters.items():
         name = f"{prefix}{key}"
         if isinstance(value, dict):

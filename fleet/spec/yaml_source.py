@@ -20,8 +20,11 @@ from fleet.errors import Location, SpecError
 FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 FAST_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
+# A place in a loaded document: the keys and list indexes leading to it, ("robots", 0, "name").
+DocPath = tuple[Any, ...]
 
-def safe_load(text: str):
+
+def safe_load(text: str) -> Any:
     return yaml.load(text, Loader=FAST_LOADER)
 
 
@@ -30,10 +33,10 @@ class SourceMap:
     """Where each path of a loaded document starts in its file."""
 
     file: str
-    positions: dict[tuple, tuple[int, int]] = field(default_factory=dict)
-    key_positions: dict[tuple, tuple[int, int]] = field(default_factory=dict)
+    positions: dict[DocPath, tuple[int, int]] = field(default_factory=dict)
+    key_positions: dict[DocPath, tuple[int, int]] = field(default_factory=dict)
 
-    def locate(self, path: tuple, key: bool = False) -> Location:
+    def locate(self, path: DocPath, key: bool = False) -> Location:
         """The location of `path`, or of its closest ancestor that has one."""
         table = self.key_positions if key else self.positions
         probe = tuple(path)
@@ -73,11 +76,11 @@ class _Builder:
         self.source = source
         self.constructor = yaml.constructor.SafeConstructor()
 
-    def build(self, node: yaml.Node, path: tuple) -> Any:
+    def build(self, node: yaml.Node, path: DocPath) -> Any:
         return _construct(node, path, self.source, self)
 
 
-def _construct(node: yaml.Node, path: tuple, source: SourceMap, builder: _Builder) -> Any:
+def _construct(node: yaml.Node, path: DocPath, source: SourceMap, builder: _Builder) -> Any:
     source.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
     if isinstance(node, yaml.MappingNode):
         result: dict[Any, Any] = {}

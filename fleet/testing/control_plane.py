@@ -16,8 +16,12 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fleet.testing.isolation import free_tcp_port
+
+if TYPE_CHECKING:
+    from fleet.control.client import ControlClient
 
 ROUTER = "router"
 AGENT_PREFIX = "agent-"
@@ -146,7 +150,7 @@ class ControlPlane:
 
     # -- talking to it --------------------------------------------------------------------------
 
-    def client(self):
+    def client(self) -> ControlClient:
         from fleet.control.client import ControlClient
 
         return ControlClient([self.endpoint])

@@ -27,11 +27,14 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fleet.testing.control_plane import ROUTER, ControlPlane, agent_key, child_environment
 from fleet.testing.isolation import reserve_domain_id, with_domain_id
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
+
+if TYPE_CHECKING:
+    from fleet.testing.ros import RosProbe
 
 WORLD = "world"
 WORLD_STATUS_FILE = "world.status.json"  # written by the world unit (templates/world.launch.yaml.j2)
@@ -83,7 +86,7 @@ class FleetHandle:
             self._reservation.release()
             raise
         self.generation = 0
-        self._probe = None
+        self._probe: RosProbe | None = None
         self.discovery_server: str | None = None  # "address:port" of the fleet's, once deployed
         self._closed = False
         self._started_agents: set[str] = set()  # ever started, killed ones included
@@ -402,9 +405,9 @@ class FleetHandle:
         if time runs out.  The failure names `what`, the sim and wall time that passed, the
         last result (and explain() when given)."""
         __tracebackhide__ = True  # pytest shows the test's line, not this loop
-        if sim_timeout is None and timeout is None:
-            raise ValueError("wait_for needs sim_timeout or timeout")
         if timeout is None:
+            if sim_timeout is None:
+                raise ValueError("wait_for needs sim_timeout or timeout")
             timeout = WALL_PER_SIM * sim_timeout + WALL_SLACK
         what = what or getattr(condition, "__name__", "condition")
         clock = _SimClock(self)

@@ -210,15 +210,15 @@ class WorldApp:
         for key in [k for k in self.errors if k.startswith("robot:") and k[6:] not in wanted]:
             self.errors.pop(key)
         self.spec = WorldSpec(**{**new.__dict__, "physics_rate": old.physics_rate})
-        for name, spec in wanted.items():
+        for name, robot_spec in wanted.items():
             current = self.robots.get(name)
             if current is None:
-                self._spawn(spec)
-            elif not current.spec.same_except_pose(spec):
+                self._spawn(robot_spec)
+            elif not current.spec.same_except_pose(robot_spec):
                 # A changed model, lidar or rate: rebuild the robot where it stands now.
                 x, y, yaw = self.physics.robots[name].pose()
                 self._despawn(name)
-                self._spawn(spec, Pose2D(x, y, yaw))
+                self._spawn(robot_spec, Pose2D(x, y, yaw))
 
     # -- the loop ----------------------------------------------------------------------------------
 

@@ -11,7 +11,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import yaml
 
@@ -154,7 +154,7 @@ class _Reader:
             self.fail(node, f"{what} must be a mapping")
         self.data: dict[str, _Value] = node.value
 
-    def fail(self, node: _Value | None, message: str):
+    def fail(self, node: _Value | None, message: str) -> NoReturn:
         node = node or self.node
         raise WorldError(message, Location(self.source, node.line, node.column))
 
@@ -340,9 +340,11 @@ def _obstacle(reader: _Reader) -> ObstacleSpec:
         )
     node = reader.raw("size")
     if node is not None and isinstance(node.value, list) and len(node.value) == 2:
-        size = (*reader.numbers("size", 2), reader.number("height", 1.0, positive=True))
+        size_x, size_y = reader.numbers("size", 2)
+        size = (size_x, size_y, reader.number("height", 1.0, positive=True))
     else:
-        size = reader.numbers("size", 3)
+        size_x, size_y, size_z = reader.numbers("size", 3)
+        size = (size_x, size_y, size_z)
     if min(size) <= 0:
         reader.fail(reader.raw("size"), f"{reader.what}: size values must be > 0")
     return ObstacleSpec(name, "box", x, y, yaw, size=size, height=size[2])
@@ -373,12 +375,15 @@ def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
 
     obstacles = [_obstacle(_Reader(source, item, "obstacle")) for item in items("obstacles")]
     robots = [_robot(_Reader(source, item, "robot")) for item in items("robots")]
-    for kind, group, nodes in (("obstacle", obstacles, items("obstacles")), ("robot", robots, items("robots"))):
+    for kind, names, nodes in (
+        ("obstacle", [obstacle.name for obstacle in obstacles], items("obstacles")),
+        ("robot", [robot.name for robot in robots], items("robots")),
+    ):
         seen: set[str] = set()
-        for spec, node in zip(group, nodes, strict=False):
-            if spec.name in seen:
-                root.fail(node, f"duplicate {kind} name '{spec.name}'")
-            seen.add(spec.name)
+        for name, node in zip(names, nodes, strict=False):
+            if name in seen:
+                root.fail(node, f"duplicate {kind} name '{name}'")
+            seen.add(name)
     namespaces: set[str] = set()
     for spec, node in zip(robots, items("robots"), strict=False):
         if spec.namespace in namespaces:

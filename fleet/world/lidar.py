@@ -37,7 +37,7 @@ class Scene:
     @classmethod
     def build(cls, shapes: list[Shape], owners: list[int]) -> Scene:
         circles = [(s, o) for s, o in zip(shapes, owners, strict=False) if s.kind == "circle"]
-        rects = []
+        rects: list[tuple[Shape, int]] = []
         for shape, owner in zip(shapes, owners, strict=False):
             if shape.kind == "rect":
                 rects.extend((piece, owner) for piece in _pieces(shape))

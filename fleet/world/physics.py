@@ -378,8 +378,8 @@ class PhysicsWorld:
         if gravity or self._ticks % self._light_every == 0:
             for robot in self._light:
                 robot.before_step(dt, gravity)
-        for robot in self._urdf:
-            robot.before_step(dt, gravity)
+        for urdf_robot in self._urdf:
+            urdf_robot.before_step(dt, gravity)
         pb.stepSimulation(physicsClientId=self.client)
         self.sim_time += dt
 

@@ -7,11 +7,16 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
 from fleet.testing.control_plane import ControlPlane
+
+if TYPE_CHECKING:
+    from fleet.control.client import ControlClient
 
 DATA = Path(__file__).parent / "data"
 REPO = Path(__file__).resolve().parents[2]
@@ -55,9 +60,6 @@ class Cluster(ControlPlane):
         env.update(extra_env or {})
         super().__init__(root, env)
 
-    def start_router(self, config: Path | None = None) -> None:
-        super().start_router(zenoh_config=config)
-
     def start_agent(self, name: str, config: Path | None = None) -> None:
         super().start_agent(name, zenoh_config=config)
 
@@ -81,12 +83,12 @@ class Cluster(ControlPlane):
         path.write_text(yaml.safe_dump(data, sort_keys=False))
         return path
 
-    def client(self, config: Path | None = None):
+    def client(self, config: Path | None = None) -> ControlClient:
         from fleet.control.client import ControlClient
 
         return ControlClient([self.endpoint], config)
 
-    def deploy(self, spec: Path, sets: list[str] = (), timeout: float = 30.0, wait: bool = True):
+    def deploy(self, spec: Path, sets: Sequence[str] = (), timeout: float = 30.0, wait: bool = True):
         from fleet.control.deploy import deploy
         from fleet.expand import expand_fleet
         from fleet.spec import load_spec

@@ -16,7 +16,7 @@ import psutil
 from control_helpers import robot, wait_until
 
 from fleet.control import protocol as p
-from fleet.control.deploy import new_generation, requests_for
+from fleet.control.deploy import Outcome, new_generation, requests_for
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
 
@@ -115,7 +115,7 @@ BAD_PAYLOADS = {
 }
 
 
-def _bad_payloads(cluster) -> dict[str, bytes]:
+def _bad_payloads(cluster) -> dict[str, bytes | None]:
     expansion = expand_fleet(load_spec(cluster.spec()))
     request = requests_for(expansion, new_generation(), set())[0]
     good = json.loads(p.encode(request))
@@ -174,7 +174,7 @@ def test_older_generation_is_refused_and_told(cluster):
 
 def test_concurrent_deploys_end_in_the_later_generation(cluster):
     specs = [cluster.spec(), cluster.spec()]
-    outcomes = [None, None]
+    outcomes: list[Outcome | None] = [None, None]
     sets = [["robot2.sleeper.period=4.0"], ["robot2.sleeper.period=5.0"]]
 
     def run(index):
@@ -185,8 +185,10 @@ def test_concurrent_deploys_end_in_the_later_generation(cluster):
         thread.start()
     for thread in threads:
         thread.join()
-    winner = max(outcomes, key=lambda outcome: outcome.generation)
-    loser = min(outcomes, key=lambda outcome: outcome.generation)
+    deployed = [outcome for outcome in outcomes if outcome is not None]
+    assert len(deployed) == 2, "a deploy thread failed"
+    winner = max(deployed, key=lambda outcome: outcome.generation)
+    loser = min(deployed, key=lambda outcome: outcome.generation)
     assert loser.superseded_by == winner.generation or not loser.ok
     view = cluster.view("tiny")
     assert {generation for (fleet, _), generation in view.generations.items() if fleet == "tiny"} == {winner.generation}
@@ -287,8 +289,9 @@ def test_logs_follow_streams_new_lines(cluster):
         stdout=subprocess.PIPE,
         text=True,
     )
+    assert follower.stdout is not None
     try:
-        ticks = set()
+        ticks: set[str] = set()
         deadline = time.monotonic() + 20
         while len(ticks) < 3 and time.monotonic() < deadline:
             line = follower.stdout.readline()

@@ -39,7 +39,7 @@ def credentials(tmp_path):
 
 def test_clients_without_credentials_cannot_query_or_deploy(fresh_cluster, credentials):
     cluster = fresh_cluster
-    cluster.start_router(credentials["router"])
+    cluster.start_router(zenoh_config=credentials["router"])
     cluster.start_agent("hostA", credentials["agent"])
     cluster.start_agent("hostB", credentials["agent"])
 

@@ -129,7 +129,8 @@ def test_the_world_written_by_the_world_process_validates(tmp_path):
     document = p.world_document(status)
     first = document.contacts.last[0]
     assert document.contacts.count >= 1 and {first.a, first.b} == {"robot1", "robot2"}
-    assert document.robots["robot1"].trail and document.robots["robot1"].model.radius == 0.2
+    model = document.robots["robot1"].model
+    assert document.robots["robot1"].trail and model is not None and model.radius == 0.2
     assert p.world_summary(status).robots["robot2"].velocity is not None
 
 

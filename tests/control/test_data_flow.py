@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import pytest
 
 from fleet.control import protocol as p
@@ -17,8 +19,8 @@ def status(agent: str, robots: list[p.RobotState], world: p.WorldSummary | None 
     return p.StatusReply(agent=info, fleet="f", time=0.0, generation=1, robots=robots, world=world)
 
 
-def unit(name: str, uptime: float = OLD, state: str = "running") -> p.RobotState:
-    kind = "world" if name == "world" else "robot"
+def unit(name: str, uptime: float = OLD, state: p.RobotStateName = "running") -> p.RobotState:
+    kind: Literal["robot", "world"] = "world" if name == "world" else "robot"
     nodes = [p.NodeState(name="n", state=state, pid=10, uptime=uptime)]
     return p.RobotState(name=name, kind=kind, state=state, nodes=nodes, running=1, total=1)
 

@@ -66,13 +66,21 @@ def test_two_robots_python_launch_structure(tmp_path):
         push = next(c for c in calls if isinstance(c.func, ast.Name) and c.func.id == "PushRosNamespace")
         assert ast.literal_eval(push.args[0]) == f"/{robot}"
         group = next(c for c in calls if isinstance(c.func, ast.Name) and c.func.id == "GroupAction")
-        assert any(isinstance(e, ast.Call) and e.func.id == "PushRosNamespace" for e in group.args[0].elts)
+        children = group.args[0]
+        assert isinstance(children, ast.List)
+        assert any(
+            isinstance(e, ast.Call) and isinstance(e.func, ast.Name) and e.func.id == "PushRosNamespace"
+            for e in children.elts
+        )
         for node in (c for c in calls if isinstance(c.func, ast.Name) and c.func.id == "Node"):
             keywords = {k.arg: k.value for k in node.keywords}
             assert ast.literal_eval(keywords["package"]) == "fleet_nodes"
-            params_file = keywords["parameters"].elts[0]
+            parameters = keywords["parameters"]
+            assert isinstance(parameters, ast.List)
+            params_file = parameters.elts[0]
+            assert isinstance(params_file, ast.List)
             assert ast.literal_eval(params_file.elts[1]) == f"/{robot}.params.yaml"
-            assert params_file.elts[0].func.id == "ThisLaunchFileDir"
+            assert ast.unparse(params_file.elts[0]) == "ThisLaunchFileDir()"
 
 
 def test_params_file_sections_and_override_order(tmp_path):
@@ -101,8 +109,9 @@ def test_layers_precedence_and_explain(tmp_path):
         "demo.yaml",
     )
     expansion = expand_fleet(spec, ["a.controller.goal_tolerance=0.05", "b.controller.loop=false"])
-    a = expansion.robot("a").parameters
-    b = expansion.robot("b").parameters
+    plan_a, plan_b = expansion.robot("a"), expansion.robot("b")
+    assert plan_a is not None and plan_b is not None
+    a, b = plan_a.parameters, plan_b.parameters
     assert a.effective()["controller"]["max_speed"] == 0.6
     assert a.effective()["controller"]["waypoints"] == [1.0, 0.0, 2.0, 0.0]  # ints promoted to the declared doubles
     assert [s.layer for s in a.explain("controller", "goal_tolerance")] == ["template", "defaults", "--set"]

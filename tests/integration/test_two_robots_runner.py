@@ -111,6 +111,7 @@ def test_two_robots_run_namespaced_with_their_own_parameters(rendered, ros_env, 
 
         # SIGKILL a node: respawned, and its restart count says so.
         battery = next(s for s in robot1.status() if s.fqn == "/robot1/battery")
+        assert battery.pid is not None
         os.kill(battery.pid, signal.SIGKILL)
 
         def respawned():
@@ -126,7 +127,7 @@ def test_two_robots_run_namespaced_with_their_own_parameters(rendered, ros_env, 
                 return False
 
         probe.wait_until(serves_parameters, 40, "the respawned battery node to serve its parameters")
-        pids = {s.pid for s in robot1.status() + robot2.status()}
+        pids = {s.pid for s in robot1.status() + robot2.status() if s.pid is not None}
     # Stopping the runner leaves no process behind, by pid and by process group.
     for pid in pids | {after.pid, battery.pid}:
         assert not psutil.pid_exists(pid) or psutil.Process(pid).status() == psutil.STATUS_ZOMBIE

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -29,7 +30,7 @@ pytestmark = pytest.mark.integration
 
 PORT = 7447  # each computer is its own network namespace: the default port is free on each
 
-SPEC = {
+SPEC: dict[str, Any] = {
     "fleet": "lan",
     "ros": {"domain_id": 0, "use_sim_time": True},
     "world": {

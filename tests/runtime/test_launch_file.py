@@ -37,7 +37,7 @@ def refused(load, text: str, *fragments: str, line: int | None = None, **launch_
     for fragment in fragments:
         assert fragment in message, message
     if line is not None:
-        assert caught.value.location.line == line, message
+        assert caught.value.location is not None and caught.value.location.line == line, message
     return message
 
 

@@ -73,7 +73,8 @@ def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
         - node: {pkg: demo, exec: sleeper, output: screen}
     """)
     runner = fleet_run(prefix, path, "--log-dir", tmp_path / "logs")
-    pids = []
+    assert runner.stdout is not None and runner.stderr is not None
+    pids: list[int] = []
     try:
         while len(pids) < 2:
             line = runner.stdout.readline()

@@ -89,6 +89,7 @@ def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
     )
     with session:
         first = session.status()[0].pid
+        assert first is not None
         os.kill(first, signal.SIGKILL)
         status = wait_for(lambda: [s for s in session.status() if s.state == "running" and s.pid != first])
         assert status[0].restarts == 1
@@ -191,6 +192,7 @@ def test_nothing_left_after_stop(prefix, write_launch, tmp_path):
     line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
     child = int(line.split()[1])
     leader = session.status()[0].pid
+    assert leader is not None
     assert set(group_members(leader)) >= {leader, child}
     session.stop()
     assert group_members(leader) == []
@@ -203,7 +205,9 @@ def test_node_exit_kills_what_it_left_in_its_group(prefix, write_launch, tmp_pat
     with session:
         line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
         child = int(line.split()[1])
-        os.kill(session.status()[0].pid, signal.SIGKILL)
+        pid = session.status()[0].pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
         wait_for(lambda: not pid_alive(child), timeout=5)
 
 
@@ -236,6 +240,7 @@ def test_no_orphans_when_the_supervisor_is_sigkilled(prefix, write_launch, tmp_p
         stdout=subprocess.PIPE,
         text=True,
     )
+    assert runner.stdout is not None
     try:
         pids = set(json.loads(runner.stdout.readline()))
         assert len(pids) == (3 if isolation == "process" else 2)
@@ -361,6 +366,7 @@ def test_failed_respawn_does_not_take_the_others_down(prefix, write_launch, tmp_
     )
     with session:
         doomed_pid, other_pid = [status.pid for status in session.status()]
+        assert doomed_pid is not None and other_pid is not None
         doomed.unlink()
         os.kill(doomed_pid, signal.SIGKILL)
         wait_for(lambda: session.status()[0].state == "failed")

@@ -22,7 +22,7 @@ robots:
 """
 
 
-def run_cli(args: list[str], capsys) -> tuple[int, str, str]:
+def run_cli(args: list[str], capsys) -> tuple[str | int | None, str, str]:
     with pytest.raises(SystemExit) as exited:
         main(args)
     captured = capsys.readouterr()

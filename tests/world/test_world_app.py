@@ -4,6 +4,7 @@ file, and a snapshot drawn from status data."""
 import json
 import os
 import time
+from typing import Any
 
 import pytest
 
@@ -148,7 +149,7 @@ def test_command_times_out_in_both_sim_and_wall_time(monkeypatch):
 
     wall = [100.0]
     monkeypatch.setattr(ros_bridge.time, "monotonic", lambda: wall[0])
-    channel = types.SimpleNamespace(
+    channel: Any = types.SimpleNamespace(  # a stand-in `self` for the method under test
         spec=RobotSpec("r", "/r", cmd_timeout=0.5), command=ros_bridge.Command(0.4, 0.1, wall=100.0, sim=10.0)
     )
     current = ros_bridge.RobotChannel.current_command

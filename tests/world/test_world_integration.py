@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from functools import partial
 from pathlib import Path
 
 import pytest
@@ -61,7 +62,7 @@ class Listener:
         self.clock_count = 0
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
         for name in ("robot1", "robot2", "robot3"):
-            self.node.create_subscription(Odometry, f"/{name}/odom", lambda m, n=name: self.odom.__setitem__(n, m), qos)
+            self.node.create_subscription(Odometry, f"/{name}/odom", partial(self.odom.__setitem__, name), qos)
         self.node.create_subscription(Clock, "/clock", self._on_clock, qos)
         self.cmd = self.node.create_publisher(Twist, "/robot1/cmd_vel", 10)
         self.executor = SingleThreadedExecutor(context=self.context)
@@ -209,7 +210,8 @@ def test_the_world_reports_each_robots_data_flow(ros_env):
                 assert time.monotonic() < deadline, f"no command or subscriber seen: {channel.link()}"
                 probe.publish("/r1/cmd_vel", Twist())
                 probe.executor.spin_once(timeout_sec=0.1)
-            assert 0.0 <= channel.link()["cmd_age"] < 5.0
+            cmd_age = channel.link()["cmd_age"]
+            assert cmd_age is not None and 0.0 <= cmd_age < 5.0
         channel.command = Command(0.5, 0.0, math.inf, math.inf)  # a benchmark's never-expiring command
         json.dumps(channel.link(), allow_nan=False)
         assert channel.link()["cmd_age"] == 0.0

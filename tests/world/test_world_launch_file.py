@@ -23,17 +23,18 @@ class _Config:
         return context[self.name]
 
 
+def _module(name: str, **attributes: object) -> types.ModuleType:
+    module = types.ModuleType(name)
+    module.__dict__.update(attributes)
+    return module
+
+
 def test_world_launch_file_builds_the_world_node(monkeypatch):
-    launch = types.ModuleType("launch")
-    launch.LaunchDescription = _Recorder
-    actions = types.ModuleType("launch.actions")
-    actions.DeclareLaunchArgument = _Recorder
-    actions.OpaqueFunction = _Recorder
-    substitutions = types.ModuleType("launch.substitutions")
-    substitutions.LaunchConfiguration = _Config
-    launch_ros = types.ModuleType("launch_ros")
-    ros_actions = types.ModuleType("launch_ros.actions")
-    ros_actions.Node = _Recorder
+    launch = _module("launch", LaunchDescription=_Recorder)
+    actions = _module("launch.actions", DeclareLaunchArgument=_Recorder, OpaqueFunction=_Recorder)
+    substitutions = _module("launch.substitutions", LaunchConfiguration=_Config)
+    launch_ros = _module("launch_ros")
+    ros_actions = _module("launch_ros.actions", Node=_Recorder)
     for name, module in {
         "launch": launch,
         "launch.actions": actions,

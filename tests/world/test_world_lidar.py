@@ -76,7 +76,7 @@ def test_matches_pybullet_ray_tests_in_a_random_scene():
     rng = np.random.default_rng(7)
     client = pb.connect(pb.DIRECT)
     try:
-        shapes = []
+        shapes: list[Shape] = []
         sensor = Shape("circle", 0.0, 0.0, radius=0.3)
         while len(shapes) < 12:
             x, y = rng.uniform(-6, 6, 2)
