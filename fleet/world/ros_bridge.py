@@ -202,13 +202,14 @@ class RosBridge:
         scene = MarkerArray(markers=markers.obstacle_markers(obstacles, t) if scene_wanted else [])
         for name, model, pose, in_contact in robots:
             channel = self.channels.get(name)
-            own_wanted = channel is not None and channel.markers_pub.get_subscription_count() > 0
+            own_pub = channel.markers_pub if channel is not None else None
+            own_wanted = own_pub is not None and own_pub.get_subscription_count() > 0
             if not (scene_wanted or own_wanted):
                 continue
             own = markers.robot_markers(name, model, pose, in_contact, t)
             scene.markers.extend(own)
-            if own_wanted:
-                channel.markers_pub.publish(MarkerArray(markers=own))
+            if own_pub is not None and own_wanted:
+                own_pub.publish(MarkerArray(markers=own))
         if scene_wanted:
             self.scene_pub.publish(scene)
 

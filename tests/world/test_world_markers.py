@@ -5,6 +5,7 @@ follows it and turns red when it touches something."""
 from __future__ import annotations
 
 import signal
+from typing import Any
 import subprocess
 import sys
 
@@ -48,7 +49,7 @@ def world(tmp_path, ros_env):
         print(log.read_text()[-3000:])
 
 
-def by_id(array) -> dict[tuple[str, int], object]:
+def by_id(array) -> dict[tuple[str, int], Any]:
     return {(marker.ns, marker.id): marker for marker in array.markers}
 
 
