@@ -193,8 +193,10 @@ def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
                     stderr=subprocess.STDOUT,
                     text=True,
                 )
-                exited = []
-                reader = threading.Thread(target=lambda: exited.append((cli.communicate()[0], time.perf_counter())))
+                exited: list[tuple[str, float]] = []
+                reader = threading.Thread(
+                    target=lambda cli=cli, exited=exited: exited.append((cli.communicate()[0], time.perf_counter()))
+                )
                 reader.start()
                 seen = observer.wait_for(fqns, 60)
                 reader.join()

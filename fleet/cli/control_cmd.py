@@ -462,7 +462,8 @@ def tool_environment(view, fleet: str | None, agent: str | None) -> dict[str, st
     if agent is not None:
         if agent not in servers:
             raise FleetError(
-                f"agent {agent} runs no discovery server of fleet {fleet} (those that do: {', '.join(sorted(servers)) or 'none'})"
+                f"agent {agent} runs no discovery server of fleet {fleet} "
+                f"(those that do: {', '.join(sorted(servers)) or 'none'})"
             )
         server = servers[agent]
     elif len(servers) == 1:

@@ -17,7 +17,8 @@ def register(app: typer.Typer) -> None:
         status_file: Path | None = typer.Option(
             None,
             "--status-file",
-            help="Write the world's state here (JSON, atomically, a few times a second); robots restart from the poses in it.",
+            help="Write the world's state here (JSON, atomically, a few times a second); "
+            "robots restart from the poses in it.",
         ),
         as_fast_as_possible: bool = typer.Option(
             False, "--as-fast-as-possible", help="Do not pace to the wall clock (tests, benchmarks)."
@@ -45,7 +46,8 @@ def register(app: typer.Typer) -> None:
         status_file: Path | None = typer.Option(
             None,
             "--status-file",
-            help="Draw from this local status file (written by `fleet world --status-file`) instead of asking the control plane.",
+            help="Draw from this local status file (written by `fleet world --status-file`) "
+            "instead of asking the control plane.",
         ),
         config: Path | None = typer.Option(
             None, "--config", help="world.yaml to take the obstacles from (default: those the world reports)."

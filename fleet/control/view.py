@@ -204,7 +204,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             row.pose = world_robot.pose.model_dump()
             row.velocity = world_robot.velocity.model_dump() if world_robot.velocity else None
             row.battery = world_robot.battery
-    for (fleet, _), row in robots.items():
+    for row in robots.values():
         if not row.reason and row.error:
             row.reason = row.error
     for fleet in {fleet for fleet, _ in robots}:

@@ -2,8 +2,9 @@
 scalars in flow style, lists of mappings as block sequences.
 
 A small exact emitter rather than yaml.dump: these files hold only validated names and plain
-values (bool, int, float, string, lists), and a 1,000-robot fleet writes thousands of them.  Strings are JSON-quoted (valid YAML double-quoted scalars); floats always
-carry a '.' or an exponent with a '.', so every YAML reader (rcl, PyYAML) reads them as floats.
+values (bool, int, float, string, lists), and a 1,000-robot fleet writes thousands of them.
+Strings are JSON-quoted (valid YAML double-quoted scalars); floats always carry a '.' or an
+exponent with a '.', so every YAML reader (rcl, PyYAML) reads them as floats.
 """
 
 from __future__ import annotations

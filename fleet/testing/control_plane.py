@@ -66,7 +66,7 @@ class ControlPlane:
         for attempt in range(3):
             args = ["router", "--listen", self.endpoint, "--state-dir", str(self.root / ROUTER)]
             process = self._spawn(ROUTER, args + _config_args(zenoh_config))
-            if _wait(lambda: ready() or process.poll() is not None, timeout) and process.poll() is None:
+            if _wait(lambda process=process: ready() or process.poll() is not None, timeout) and process.poll() is None:
                 return
             self.stop_process(ROUTER)
             if any(key != ROUTER for key in self.processes) or attempt == 2:

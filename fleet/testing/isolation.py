@@ -47,7 +47,7 @@ def reserve_domain_id() -> DomainReservation:
     candidates = list(_DOMAIN_RANGE)
     random.shuffle(candidates)
     for domain_id in candidates:
-        lock_file = open(_LOCK_DIR / f"{domain_id}.lock", "a")
+        lock_file = open(_LOCK_DIR / f"{domain_id}.lock", "a")  # noqa: SIM115 (held open: the lock lives with it)
         try:
             fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

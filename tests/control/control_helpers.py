@@ -1,5 +1,6 @@
-"""Helpers for the control-plane tests. A real control plane on loopback: a router and agents as separate processes, own ports,
-own ROS domain, own state directories; and a tiny node stand-in so most tests run no rclpy."""
+"""Helpers for the control-plane tests. A real control plane on loopback: a router and agents as
+separate processes, own ports, own ROS domain, own state directories; and a tiny node stand-in so
+most tests run no rclpy."""
 
 from __future__ import annotations
 

@@ -94,7 +94,7 @@ def test_world_document_validates_what_snapshot_draws():
         p.world_document(broken)
     broken = world_file()
     broken["robots"]["robot1"]["pose"] = {"x": "far"}
-    with pytest.raises(ValueError, match="robots.robot1.pose"):
+    with pytest.raises(ValueError, match=r"robots\.robot1\.pose"):
         p.world_document(broken)
 
 

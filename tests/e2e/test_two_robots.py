@@ -80,7 +80,7 @@ def test_each_robot_has_its_own_topics(fleet):
         allowed = {(f"/{robot}", node) for node in ("controller", "battery", "safety")} | {("/", "world")}
         for topic in TOPICS:
             name = fleet.topic(robot, topic)
-            found = fleet.wait_for(lambda: owners(name), timeout=10, what=f"the nodes on {name}")
+            found = fleet.wait_for(lambda name=name: owners(name), timeout=10, what=f"the nodes on {name}")
             assert found <= allowed, (name, found)
 
     # Each robot's odometry is its own: frames named after it, and positions matching its world pose.

@@ -189,7 +189,7 @@ def test_nothing_left_after_stop(prefix, write_launch, tmp_path):
     prefix.add("parent", PARENT)
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent, respawn: 'true'}\n")
     session.start()
-    line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
+    line = wait_for(lambda: [text for text in session.tail("parent-1") if text.startswith("child ")])[0]
     child = int(line.split()[1])
     leader = session.status()[0].pid
     assert leader is not None
@@ -203,7 +203,7 @@ def test_node_exit_kills_what_it_left_in_its_group(prefix, write_launch, tmp_pat
     prefix.add("parent", PARENT)
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent}\n")
     with session:
-        line = wait_for(lambda: [l for l in session.tail("parent-1") if l.startswith("child ")])[0]
+        line = wait_for(lambda: [text for text in session.tail("parent-1") if text.startswith("child ")])[0]
         child = int(line.split()[1])
         pid = session.status()[0].pid
         assert pid is not None

@@ -4,6 +4,7 @@ stand-in modules recording what it builds."""
 import sys
 import types
 from pathlib import Path
+from typing import ClassVar
 
 LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "world.launch.py"
 
@@ -14,7 +15,7 @@ class _Recorder:
 
 
 class _Config:
-    values: dict = {}
+    values: ClassVar[dict] = {}
 
     def __init__(self, name):
         self.name = name

@@ -5,9 +5,9 @@ follows it and turns red when it touches something."""
 from __future__ import annotations
 
 import signal
-from typing import Any
 import subprocess
 import sys
+from typing import Any
 
 import pytest
 
