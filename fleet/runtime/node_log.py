@@ -22,7 +22,7 @@ class RotatingLog:
         self.max_bytes = max_bytes
         self.backups = backups
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "a", encoding="utf-8", errors="replace")
+        self._file = open(self.path, "a", encoding="utf-8", errors="replace")  # noqa: SIM115 (the log stays open)
         self._size = self._file.tell()
 
     def write(self, line: str) -> None:
@@ -43,7 +43,7 @@ class RotatingLog:
             os.replace(self.path, self.path.with_name(f"{self.path.name}.1"))
         else:
             self.path.unlink(missing_ok=True)
-        self._file = open(self.path, "a", encoding="utf-8", errors="replace")
+        self._file = open(self.path, "a", encoding="utf-8", errors="replace")  # noqa: SIM115 (the log stays open)
         self._size = 0
 
     def close(self) -> None:
