@@ -101,8 +101,10 @@ def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
 
 def test_respawn_waits_respawn_delay(prefix, write_launch, tmp_path):
     prefix.add("quitter", "#!/bin/sh\necho bye\nexit 3\n")
+    # The delay leaves 0.7 s between the look 0.3 s into the backoff and the respawn: a test
+    # process held up for a moment on a loaded machine must not see the respawn come early.
     session = session_for(
-        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 0.5}\n"
+        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 1.0}\n"
     )
     with session:
         wait_for(lambda: session.status()[0].state == "backoff")
