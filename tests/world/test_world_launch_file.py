@@ -14,8 +14,6 @@ class _Recorder:
 
 
 class _Config:
-    values: dict = {}
-
     def __init__(self, name):
         self.name = name
 
