@@ -14,10 +14,10 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from fleet.testing.isolation import free_tcp_port
+from fleet.testing.poll import WaitTimeout, poll
 
 ROUTER = "router"
 AGENT_PREFIX = "agent-"
@@ -61,8 +61,17 @@ class ControlPlane:
         for attempt in range(3):
             args = ["router", "--listen", self.endpoint, "--state-dir", str(self.root / ROUTER)]
             process = self._spawn(ROUTER, args + _config_args(zenoh_config))
-            if _wait(lambda: ready() or process.poll() is not None, timeout) and process.poll() is None:
-                return
+            try:
+                poll(
+                    lambda process=process: ready() or process.poll() is not None,
+                    timeout=timeout,
+                    what="the router to answer",
+                )
+            except WaitTimeout:
+                pass  # stopped below, and tried again on a new port
+            else:
+                if process.poll() is None:  # it answers (it did not exit)
+                    return
             self.stop_process(ROUTER)
             if any(key != ROUTER for key in self.processes) or attempt == 2:
                 break
@@ -174,15 +183,6 @@ def agent_key(name: str) -> str:
 def _port_open(port: int) -> bool:
     with socket.socket() as sock:
         return sock.connect_ex(("127.0.0.1", port)) == 0
-
-
-def _wait(predicate, timeout: float, interval: float = 0.1) -> bool:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(interval)
-    return True
 
 
 def child_environment(marker_variable: str, marker: str, state_dir: Path) -> dict[str, str]:

@@ -1,5 +1,6 @@
-"""Helpers for the control-plane tests. A real control plane on loopback: a router and agents as separate processes, own ports,
-own ROS domain, own state directories; and a tiny node stand-in so most tests run no rclpy."""
+"""Helpers for the control-plane tests. A real control plane on loopback: a router and agents as
+separate processes, own ports, own ROS domain, own state directories; and a tiny node stand-in so
+most tests run no rclpy."""
 
 from __future__ import annotations
 
@@ -9,12 +10,13 @@ import sys
 import time
 from pathlib import Path
 
+import psutil
 import yaml
 
 from fleet.testing.control_plane import ControlPlane
+from fleet.testing.poll import poll
 
 DATA = Path(__file__).parent / "data"
-REPO = Path(__file__).resolve().parents[2]
 
 
 def make_prefix(root: Path) -> Path:
@@ -28,17 +30,6 @@ def make_prefix(root: Path) -> Path:
     executable.write_text(f"#!{sys.executable}\n" + (DATA / "sleeper.py").read_text())
     executable.chmod(0o755)
     return root
-
-
-def wait_until(predicate, timeout: float, interval: float = 0.1):
-    deadline = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() >= deadline:
-            return value
-        time.sleep(interval)
 
 
 class Cluster(ControlPlane):
@@ -113,8 +104,24 @@ class Cluster(ControlPlane):
             view = self.view()
             return all(any(a.name == n and a.online for a in view.agents) for n in names)
 
-        assert wait_until(online, timeout), "\n".join(self.log(f"agent-{n}") for n in names)
+        poll(
+            online,
+            timeout=timeout,
+            what=f"agents {', '.join(names)} online",
+            explain=lambda: "\n".join(self.log(f"agent-{n}") for n in names),
+        )
 
 
 def robot(view, name: str):
     return next(row for row in view.robots if row.name == name)
+
+
+def wait_processes_gone(pids, timeout: float) -> None:
+    """Until none of `pids` is a live process."""
+    poll(
+        lambda: sorted(pid for pid in pids if psutil.pid_exists(pid)),
+        until=lambda alive: not alive,
+        timeout=timeout,
+        what=f"processes {sorted(pids)} to end",
+        describe=lambda alive: f"still alive: {alive}",
+    )

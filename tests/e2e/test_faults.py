@@ -9,9 +9,9 @@ import time
 
 import psutil
 import pytest
-from e2e_helpers import TWO_ROBOTS, RouteProgress, node_pids, spec_with, wait_driving
 
 from fleet.testing import Pose, running_fleet
+from tests.e2e.e2e_helpers import TWO_ROBOTS, RouteProgress, node_pids, spec_with, wait_driving
 
 pytestmark = pytest.mark.integration
 
@@ -112,7 +112,9 @@ def test_killed_world_restarts_with_robots_at_their_last_poses(fleet):
     assert {robot: fleet.pids(robot) for robot in ROBOTS} == robots_before  # the robots' nodes kept running
     for robot in ROBOTS:  # and they patrol on, on the new world's clock
         route = RouteProgress(fleet, robot)
-        fleet.wait_for(lambda: route.update() >= 2, sim_timeout=30, what=f"{robot} to reach two more waypoints")
+        fleet.wait_for(
+            lambda route=route: route.update() >= 2, sim_timeout=30, what=f"{robot} to reach two more waypoints"
+        )
     fleet.assert_no_leaks()
 
 

@@ -5,9 +5,9 @@ runs flat stops its robot, and a robot added by redeploying joins without distur
 from __future__ import annotations
 
 import pytest
-from e2e_helpers import TWO_ROBOTS, PoseWatch, RouteProgress, node_pids, odom_speeds, spec_with, wait_driving
 
 from fleet.testing import running_fleet
+from tests.e2e.e2e_helpers import TWO_ROBOTS, PoseWatch, RouteProgress, node_pids, odom_speeds, spec_with, wait_driving
 
 pytestmark = pytest.mark.integration
 
@@ -80,7 +80,7 @@ def test_each_robot_has_its_own_topics(fleet):
         allowed = {(f"/{robot}", node) for node in ("controller", "battery", "safety")} | {("/", "world")}
         for topic in TOPICS:
             name = fleet.topic(robot, topic)
-            found = fleet.wait_for(lambda: owners(name), timeout=10, what=f"the nodes on {name}")
+            found = fleet.wait_for(lambda name=name: owners(name), timeout=10, what=f"the nodes on {name}")
             assert found <= allowed, (name, found)
 
     # Each robot's odometry is its own: frames named after it, and positions matching its world pose.
