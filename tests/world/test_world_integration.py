@@ -58,8 +58,13 @@ class Listener:
         self.cmd = self.node.create_publisher(Twist, "/robot1/cmd_vel", 10)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def _on_clock(self, msg):
         self.clock_count += 1
@@ -70,7 +75,11 @@ class Listener:
         self.cmd.publish(msg)
 
     def close(self):
-        self.executor.shutdown(timeout_sec=1.0)
+        # The spinning thread ends first: shutting the executor down under a callback it runs
+        # makes that thread fail (rclpy's guard condition is gone, or the node's handle).
+        self._stop.set()
+        self.thread.join()
+        self.executor.shutdown()
         self.node.destroy_node()
         self.rclpy.shutdown(context=self.context)
 
