@@ -28,13 +28,12 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests" / "control"))
 sys.path.insert(0, str(REPO))
-
-from control_helpers import Cluster, wait_until  # noqa: E402
 
 from bench.machine import machine_description  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id, ros_environment  # noqa: E402
+from fleet.testing.poll import poll  # noqa: E402
+from tests.control.control_helpers import Cluster  # noqa: E402
 
 
 def timed(command: list[str], env: dict[str, str]) -> tuple[float, subprocess.CompletedProcess]:
@@ -95,7 +94,7 @@ class ReadyWatcher:
                 if any(t.startswith("__node:=") for t in _cmdline(p))
             ]
 
-        wait_until(lambda: not nodes_left(), timeout)
+        poll(nodes_left, until=lambda left: not left, timeout=timeout, what="the node processes to end")
 
 
 def _cmdline(process) -> list[str]:

@@ -3,34 +3,12 @@
 from __future__ import annotations
 
 import os
-import sys
 import uuid
-from pathlib import Path
 
 import pytest
 
 from fleet.testing.isolation import reserve_domain_id, ros_environment
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
-
-# FastDDS reads its transport choice once per process: set it before any test creates a
-# participant, so the test process, like the fleet's, keeps nothing in /dev/shm when killed.
-os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
-
-REPO = Path(__file__).resolve().parent.parent
-FLEETS = REPO / "fleets"
-TEMPLATES = REPO / "templates"
-PYTHON = sys.executable
-
-
-def run_fleet(args: list[str]) -> int:
-    """Run the `fleet` command in this process; returns its exit code."""
-    from fleet.cli import main
-
-    try:
-        main(args)
-    except SystemExit as done:
-        return int(done.code or 0)
-    return 0
 
 
 @pytest.fixture(autouse=True, scope="session")

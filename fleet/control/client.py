@@ -18,10 +18,6 @@ STATUS_TIMEOUT = 3.0
 APPLY_TIMEOUT = 10.0
 
 
-class Unreachable(Exception):
-    """No agent answered (none is connected under that name)."""
-
-
 class ControlClient:
     def __init__(self, connect: list[str], zenoh_config: Path | None = None):
         self.connect = connect

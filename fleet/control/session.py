@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -172,14 +171,3 @@ def _first_line(error: Exception) -> str:
     # zenoh appends " at /root/.cargo/...rs:NNN." to its messages: not for users.
     cut = text.find(" at /")
     return (text[:cut] if cut > 0 else text).strip()
-
-
-def wait_for_router(connect: list[str], user_config: Path | None, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            open_client(connect, user_config).close()
-            return True
-        except ControlError:
-            time.sleep(0.1)
-    return False

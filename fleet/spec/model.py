@@ -10,7 +10,8 @@ from fleet.spec.yaml_source import SourceMap
 
 
 def _ints_to_floats(data: Any, keep: frozenset[str] = frozenset()) -> Any:
-    """Strict mode refuses `x: 1` for a float; people write that, so promote ints (not bools)."""
+    """Ints (not bools) as floats, and YAML lists as the tuples the models declare (position,
+    size): strict mode takes `x: 1` for a float, but refuses a list where a tuple is declared."""
     if not isinstance(data, dict):
         return data
     out = {}
@@ -36,7 +37,8 @@ class Strict(BaseModel):
 
 
 class Measured(Strict):
-    """A model of measurements: `x: 1` is read as 1.0 (strict mode alone would refuse it)."""
+    """A model of measurements: `x: 1` is read as 1.0 and `position: [1, 2]` as (1.0, 2.0) (strict
+    mode alone would refuse the list)."""
 
     integer_fields: ClassVar[frozenset[str]] = frozenset()
 

@@ -14,11 +14,11 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fleet.testing.isolation import free_tcp_port
+from fleet.testing.poll import WaitTimeout, poll
 
 if TYPE_CHECKING:
     from fleet.control.client import ControlClient
@@ -66,8 +66,21 @@ class ControlPlane:
         for attempt in range(3):
             args = ["router", "--listen", self.endpoint, "--state-dir", str(self.root / ROUTER)]
             process = self._spawn(ROUTER, args + _config_args(zenoh_config))
-            if _wait(lambda process=process: ready() or process.poll() is not None, timeout) and process.poll() is None:
-                return
+
+            def answers_or_exited(process: subprocess.Popen = process) -> bool:
+                return bool(ready()) or process.poll() is not None
+
+            try:
+                poll(
+                    answers_or_exited,
+                    timeout=timeout,
+                    what="the router to answer",
+                )
+            except WaitTimeout:
+                pass  # stopped below, and tried again on a new port
+            else:
+                if process.poll() is None:  # it answers (it did not exit)
+                    return
             self.stop_process(ROUTER)
             if any(key != ROUTER for key in self.processes) or attempt == 2:
                 break
@@ -179,15 +192,6 @@ def agent_key(name: str) -> str:
 def _port_open(port: int) -> bool:
     with socket.socket() as sock:
         return sock.connect_ex(("127.0.0.1", port)) == 0
-
-
-def _wait(predicate, timeout: float, interval: float = 0.1) -> bool:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(interval)
-    return True
 
 
 def child_environment(marker_variable: str, marker: str, state_dir: Path) -> dict[str, str]:

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from fleet.testing.control_plane import ROUTER, ControlPlane, agent_key, child_environment
 from fleet.testing.isolation import reserve_domain_id, with_domain_id
+from fleet.testing.poll import WaitTimeout, poll
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
 
 if TYPE_CHECKING:
@@ -46,8 +47,8 @@ WALL_SLACK = 20.0
 OPEN_HANDLES: weakref.WeakSet[FleetHandle] = weakref.WeakSet()
 
 
-class FleetTimeout(AssertionError):
-    """A wait_for condition did not hold in time."""
+# A wait_for condition that did not hold in time: poll's failure, by the name fleet.testing exports.
+FleetTimeout = WaitTimeout
 
 
 class FleetLeak(AssertionError):
@@ -402,39 +403,30 @@ class FleetHandle:
         sim_timeout: seconds of *simulated* time (the world's clock) it may take; timeout:
         seconds of wall time (default: WALL_PER_SIM x sim_timeout + WALL_SLACK, so a stalled
         world fails too).  An exception raised by condition() counts as "not yet" and is shown
-        if time runs out.  The failure names `what`, the sim and wall time that passed, the
-        last result (and explain() when given)."""
+        if time runs out.  The failure (FleetTimeout) names `what`, the sim and wall time that
+        passed, the last result (and explain() when given)."""
         __tracebackhide__ = True  # pytest shows the test's line, not this loop
         if timeout is None:
             if sim_timeout is None:
                 raise ValueError("wait_for needs sim_timeout or timeout")
             timeout = WALL_PER_SIM * sim_timeout + WALL_SLACK
-        what = what or getattr(condition, "__name__", "condition")
         clock = _SimClock(self)
-        started = time.monotonic()
-        while True:
-            error = None
-            try:
-                result = condition()
-            except Exception as raised:  # not ready yet (a robot not spawned, the router away, ...)
-                result, error = None, raised
-            if result:
-                return result
-            sim = clock.elapsed()
-            wall = time.monotonic() - started
-            if (sim_timeout is not None and sim >= sim_timeout) or wall >= timeout:
-                message = (
-                    f"fleet {self.name}: timed out waiting for {what}: "
-                    f"{sim:.1f} s of sim time"
-                    + (f" (limit {sim_timeout:g})" if sim_timeout is not None else "")
-                    + f" and {wall:.1f} s of wall time (limit {timeout:g}) passed; last result: {result!r}"
-                )
-                if error is not None:
-                    message += f"; last error: {type(error).__name__}: {error}"
-                if explain is not None:
-                    message += f"; {explain()}"
-                raise FleetTimeout(message)
-            self._pause(interval)
+
+        def sim_time_passed() -> str:
+            limit = f" (limit {sim_timeout:g})" if sim_timeout is not None else ""
+            text = f"fleet {self.name}: {clock.elapsed():.1f} s of sim time{limit} passed"
+            return text + (f"; {explain()}" if explain is not None else "")
+
+        return poll(
+            condition,
+            timeout=timeout,
+            what=what or str(getattr(condition, "__name__", "condition")),
+            interval=interval,
+            pause=self._pause,
+            retry_on=(Exception,),  # not ready yet (a robot not spawned, the router away, ...)
+            expired=(lambda: clock.elapsed() >= sim_timeout) if sim_timeout is not None else None,
+            explain=sim_time_passed,
+        )
 
     def wait_sim(self, seconds: float) -> None:
         """Let `seconds` of sim time pass (subscriptions keep receiving)."""

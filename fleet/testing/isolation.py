@@ -17,9 +17,12 @@ from fleet.runtime.environment import ros_environment
 
 __all__ = ["DomainReservation", "free_tcp_port", "reserve_domain_id", "ros_environment", "with_domain_id"]
 
-# FastDDS maps domain ids to UDP ports; 0..232 is the valid range.  We stay clear of 0 (the
-# default everyone uses) and of the low ids people pick by hand.
-_DOMAIN_RANGE = range(100, 233)
+# FastDDS maps domain id d to the UDP ports 7400 + 250 d and up (the fleet's discovery server
+# among them, fleet.runtime.environment).  Above d = 101 those ports lie in Linux's ephemeral
+# range (32768..60999), where every DDS participant also binds sockets for sending: a fleet of
+# one test could find its discovery server's port taken by another test's process.  So ids
+# 50..101: clear of that range, of 0 (the default everyone uses) and of the low ids people pick.
+_DOMAIN_RANGE = range(50, 102)
 _LOCK_DIR = Path(tempfile.gettempdir()) / "fleet-domain-locks"
 
 
@@ -47,7 +50,7 @@ def reserve_domain_id() -> DomainReservation:
     candidates = list(_DOMAIN_RANGE)
     random.shuffle(candidates)
     for domain_id in candidates:
-        lock_file = open(_LOCK_DIR / f"{domain_id}.lock", "a")  # noqa: SIM115 (held open: the lock lives with it)
+        lock_file = open(_LOCK_DIR / f"{domain_id}.lock", "a")  # noqa: SIM115 (held open: it is the lock)
         try:
             fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

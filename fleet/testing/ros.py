@@ -16,6 +16,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from fleet.testing.poll import poll
+
 
 class Subscription:
     """Messages received on one topic, newest last."""
@@ -106,15 +108,13 @@ class RosProbe:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
 
     def wait_until(self, condition: Callable[[], Any], timeout: float, what: str) -> Any:
-        """Spin until condition() is truthy; fail with `what` after `timeout` wall seconds."""
-        deadline = time.monotonic() + timeout
-        while True:
-            result = condition()
-            if result:
-                return result
-            if time.monotonic() > deadline:
-                raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-            self.executor.spin_once(timeout_sec=0.05)
+        """Spin until condition() is truthy and return it; fail with `what` after `timeout` wall
+        seconds."""
+        __tracebackhide__ = True
+        return poll(condition, timeout=timeout, what=what, interval=0.05, pause=self._spin_once)
+
+    def _spin_once(self, seconds: float) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
 
     # --- graph -------------------------------------------------------------------------------
 
@@ -122,8 +122,14 @@ class RosProbe:
         return {f"{ns.rstrip('/')}/{name}" for name, ns in self.node.get_node_names_and_namespaces()}
 
     def wait_for_nodes(self, names: set[str], timeout: float = 30.0) -> None:
-        self.wait_until(
-            lambda: names <= self.node_names(), timeout, f"nodes {sorted(names)} (seen: {sorted(self.node_names())})"
+        poll(
+            self.node_names,
+            timeout=timeout,
+            what=f"nodes {sorted(names)}",
+            until=lambda seen: names <= seen,
+            interval=0.05,
+            pause=self._spin_once,
+            describe=lambda seen: f"nodes {sorted(seen)}",
         )
 
     def topics(self) -> dict[str, list[str]]:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from control_helpers import Cluster
 
 from fleet.testing.isolation import reserve_domain_id
+from tests.control.control_helpers import Cluster
 
 
 @pytest.fixture(scope="module")

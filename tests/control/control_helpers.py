@@ -12,15 +12,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import psutil
 import yaml
 
 from fleet.testing.control_plane import ControlPlane
+from fleet.testing.poll import poll
 
 if TYPE_CHECKING:
     from fleet.control.client import ControlClient
 
 DATA = Path(__file__).parent / "data"
-REPO = Path(__file__).resolve().parents[2]
 
 
 def make_prefix(root: Path) -> Path:
@@ -36,20 +37,11 @@ def make_prefix(root: Path) -> Path:
     return root
 
 
-def wait_until(predicate, timeout: float, interval: float = 0.1):
-    deadline = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() >= deadline:
-            return value
-        time.sleep(interval)
-
-
 class Cluster(ControlPlane):
     """fleet.testing's control plane (router + agents as subprocesses, stopped by stop()), with
     an ament prefix holding the tiny stand-in node, and the specs and views the tests use."""
+
+    spec_file: Path  # the spec a module's tests deploy (set by its fixture)
 
     def __init__(self, root: Path, domain_id: int, extra_env: dict[str, str] | None = None):
         root.mkdir(parents=True, exist_ok=True)
@@ -116,8 +108,24 @@ class Cluster(ControlPlane):
             view = self.view()
             return all(any(a.name == n and a.online for a in view.agents) for n in names)
 
-        assert wait_until(online, timeout), "\n".join(self.log(f"agent-{n}") for n in names)
+        poll(
+            online,
+            timeout=timeout,
+            what=f"agents {', '.join(names)} online",
+            explain=lambda: "\n".join(self.log(f"agent-{n}") for n in names),
+        )
 
 
 def robot(view, name: str):
     return next(row for row in view.robots if row.name == name)
+
+
+def wait_processes_gone(pids, timeout: float) -> None:
+    """Until none of `pids` is a live process."""
+    poll(
+        lambda: sorted(pid for pid in pids if psutil.pid_exists(pid)),
+        until=lambda alive: not alive,
+        timeout=timeout,
+        what=f"processes {sorted(pids)} to end",
+        describe=lambda alive: f"still alive: {alive}",
+    )

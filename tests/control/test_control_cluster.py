@@ -13,12 +13,16 @@ import threading
 import time
 
 import psutil
-from control_helpers import robot, wait_until
+import pytest
 
 from fleet.control import protocol as p
 from fleet.control.deploy import Outcome, new_generation, requests_for
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
+from fleet.testing.poll import poll
+from tests.control.control_helpers import robot, wait_processes_gone
+
+pytestmark = pytest.mark.integration
 
 ROBOTS = {"robot1": "hostA", "robot2": "hostB", "robot3": "hostB"}
 
@@ -92,7 +96,7 @@ def test_removing_a_robot_stops_it(cluster):
     assert outcome.replies["hostB"].changes.stop == ["robot3"]
     view = cluster.view("tiny")
     assert {row.name for row in view.robots} == {"robot1", "robot2"}
-    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in gone), 10)
+    wait_processes_gone(gone, 10)
     assert not (cluster.state_dir("hostB") / "units" / "tiny" / "robot3").exists()
 
 
@@ -132,15 +136,18 @@ def _bad_payloads(cluster) -> dict[str, bytes | None]:
 def _settled_rows(cluster, fleet: str, timeout: float = 30.0):
     """The robots' (name, pids, generation, state) once every robot runs and two looks 1 s apart agree
     (a deploy's reply comes before every agent has finished reconciling)."""
-    previous = None
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        rows = [(r.name, r.pids, r.generation, r.state) for r in cluster.view(fleet).robots]
-        if rows == previous and all(state == "running" for *_, state in rows):
-            return rows
-        previous = rows
-        time.sleep(1.0)
-    raise AssertionError(f"fleet {fleet} did not settle: {previous}")
+    looks: list[list] = []
+
+    def look():
+        looks.append([(r.name, r.pids, r.generation, r.state) for r in cluster.view(fleet).robots])
+        return looks[-2:]
+
+    def settled(last_two) -> bool:
+        return (
+            len(last_two) == 2 and last_two[0] == last_two[1] and all(state == "running" for *_, state in last_two[1])
+        )
+
+    return poll(look, until=settled, timeout=timeout, interval=1.0, what=f"fleet {fleet} to settle")[-1]
 
 
 def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
@@ -200,7 +207,12 @@ def test_concurrent_deploys_end_in_the_later_generation(cluster):
 
 def test_logs_come_from_the_agent(cluster):
     cluster.deploy(cluster.spec())
-    assert wait_until(lambda: "tick" in cluster.cli("logs", "robot1", "--connect", cluster.endpoint).stdout, 10)
+    poll(
+        lambda: cluster.cli("logs", "robot1", "--connect", cluster.endpoint).stdout,
+        until=lambda text: "tick" in text,
+        timeout=10,
+        what="a tick in robot1's log",
+    )
 
     def last_three_ticks():
         # The log file keeps earlier processes' output (robot1 was restarted by earlier tests):
@@ -211,7 +223,7 @@ def test_logs_come_from_the_agent(cluster):
         ticks = [int(line[5:]) for line in lines if re.fullmatch(r"tick \d+", line)]
         return len(ticks) == len(lines) == 3 and ticks == list(range(ticks[0], ticks[0] + 3))
 
-    assert wait_until(last_three_ticks, 10)
+    poll(last_three_ticks, timeout=10, what="the last three lines of robot1's log to be three ticks in a row")
     missing = cluster.cli("logs", "nosuchrobot", "--connect", cluster.endpoint)
     assert missing.returncode != 0 and "nosuchrobot" in missing.stderr
 
@@ -228,8 +240,7 @@ def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
         agent = next((a for a in view.agents if a.name == "hostB"), None)
         return agent is not None and not agent.online and view
 
-    view = wait_until(offline, 3.0)
-    assert view, "hostB still online 3 s after SIGKILL"
+    view = poll(offline, timeout=3.0, what="hostB shown offline after its SIGKILL")
     assert time.monotonic() - killed_at < 3.0
     assert {row.name: row.state for row in view.robots if row.agent == "hostB"} == {
         "robot2": "offline",
@@ -237,7 +248,7 @@ def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
     }
     status = cluster.cli("status", "--connect", cluster.endpoint, "--fleet", "tiny")
     assert status.returncode != 0 and "offline" in status.stdout
-    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in hostb_pids), 3.0)
+    wait_processes_gone(hostb_pids, 3.0)
 
     # A deploy while hostB is away: hostA's robots are deployed, hostB's stay pending, exit non-zero.
     spec = cluster.spec()
@@ -259,8 +270,12 @@ def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
         rows = [row for row in view.robots if row.agent == "hostB"]
         return len(rows) == 2 and all(row.state == "running" and row.generation == second for row in rows) and view
 
-    view = wait_until(restored, 20)
-    assert view, cluster.log("agent-hostB")
+    poll(
+        restored,
+        timeout=20,
+        what="hostB's robots running at the missed generation",
+        explain=lambda: cluster.log("agent-hostB"),
+    )
 
 
 def test_robots_keep_running_while_the_router_is_away(cluster):
@@ -275,7 +290,12 @@ def test_robots_keep_running_while_the_router_is_away(cluster):
         view = cluster.view("tiny")
         return {row.name: row.pids for row in view.robots if row.state == "running"} == pids
 
-    assert wait_until(back, 15), cluster.view("tiny").robots
+    poll(
+        back,
+        timeout=15,
+        what="the same robot processes in status again",
+        explain=lambda: str(cluster.view("tiny").robots),
+    )
 
 
 def test_logs_follow_streams_new_lines(cluster):
@@ -289,15 +309,18 @@ def test_logs_follow_streams_new_lines(cluster):
         stdout=subprocess.PIPE,
         text=True,
     )
-    assert follower.stdout is not None
+    output = follower.stdout
+    assert output is not None
     try:
         ticks: set[str] = set()
-        deadline = time.monotonic() + 20
-        while len(ticks) < 3 and time.monotonic() < deadline:
-            line = follower.stdout.readline()
+
+        def ticks_read() -> int:
+            line = output.readline()  # blocks until the follower prints a line
             if line.startswith("tick"):
                 ticks.add(line.strip())
-        assert len(ticks) >= 3
+            return len(ticks)
+
+        poll(ticks_read, until=lambda count: count >= 3, timeout=20, interval=0, what="three ticks from `logs -f`")
     finally:
         follower.terminate()
         follower.wait(10)

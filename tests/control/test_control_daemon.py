@@ -5,9 +5,12 @@ from __future__ import annotations
 import json
 
 import psutil
-from control_helpers import wait_until
+import pytest
 
 from fleet.control.daemon import running_pid
+from tests.control.control_helpers import wait_processes_gone
+
+pytestmark = pytest.mark.integration
 
 
 def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp_path):
@@ -42,7 +45,7 @@ def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp
         down = cluster.cli("down", "--all", env=env)
         assert down.returncode == 0, down.stdout + down.stderr
         assert "local daemon stopped" in down.stdout
-        assert wait_until(lambda: not psutil.pid_exists(pid), 10)
+        wait_processes_gone([pid], 10)
         assert not any(psutil.pid_exists(p) for p in node_pids)
         assert running_pid(state) is None and not (state / "daemon.pid").exists()
     finally:

@@ -7,11 +7,14 @@ from __future__ import annotations
 import signal
 import time
 
-import psutil
-from control_helpers import robot, wait_until
+import pytest
 
 from fleet.control import protocol as p
 from fleet.control.deploy import down
+from fleet.testing.poll import poll
+from tests.control.control_helpers import robot, wait_processes_gone
+
+pytestmark = pytest.mark.integration
 
 
 def start(cluster) -> None:
@@ -39,7 +42,7 @@ def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_cluster):
         rows = [row for row in view.robots if row.agent == "hostB"]
         return len(rows) == 2 and all(r.state == "running" and r.generation == outcome.generation for r in rows)
 
-    assert wait_until(deployed, 20), cluster.log("agent-hostB")
+    poll(deployed, timeout=20, what="hostB's robots at the new generation", explain=lambda: cluster.log("agent-hostB"))
     params = (cluster.state_dir("hostB") / "units" / "tiny" / "robot2" / "robot2.params.yaml").read_text()
     assert "period: 2.0" in params
     assert robot(cluster.view("tiny"), "robot1").pids == robot1_pids  # hostA had nothing left to do
@@ -52,7 +55,12 @@ def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_cluster):
         client.put_desired([stale])
     cluster.kill("agent-hostB", signal.SIGTERM)
     cluster.start_agent("hostB")
-    assert wait_until(deployed, 20), cluster.log("agent-hostB")
+    poll(
+        deployed,
+        timeout=20,
+        what="hostB's robots still at the newer generation",
+        explain=lambda: cluster.log("agent-hostB"),
+    )
 
 
 def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_cluster):
@@ -67,14 +75,20 @@ def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_clus
     # The router keeps what it holds across a restart (its state directory).
     cluster.kill("router", signal.SIGTERM)
     cluster.start_router()
-    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in hostb_pids), 5)
+    wait_processes_gone(hostb_pids, 5)
 
     cluster.start_agent("hostB")  # restores robot2 and robot3, then fetches the empty desired state
     cluster.wait_agents_online("hostB")
     desired = cluster.state_dir("hostB") / "desired" / "tiny.json"
-    assert wait_until(lambda: '"bundles":[]' in desired.read_text(), 20), cluster.log("agent-hostB")
+    poll(
+        desired.read_text,
+        until=lambda text: '"bundles":[]' in text,
+        timeout=20,
+        what="hostB to fetch the empty desired state",
+        explain=lambda: cluster.log("agent-hostB"),
+    )
     units = cluster.state_dir("hostB") / "units" / "tiny"
-    assert wait_until(lambda: not any(units.iterdir()), 10), list(units.iterdir())  # its robots stopped
+    poll(lambda: list(units.iterdir()), until=lambda left: not left, timeout=10, what="hostB's robots to stop")
     assert not cluster.view("tiny").robots
 
 
@@ -97,7 +111,12 @@ def test_bad_desired_states_are_ignored(fresh_cluster):
     cluster.kill("agent-hostB", signal.SIGTERM)  # and a fresh start fetches at once
     cluster.start_agent("hostB")
     cluster.wait_agents_online("hostB")
-    assert wait_until(lambda: len(cluster.view("tiny").robots) == 3, 15)
+    poll(
+        lambda: len(cluster.view("tiny").robots),
+        until=lambda count: count == 3,
+        timeout=15,
+        what="three robots in status",
+    )
     time.sleep(4)  # more than one fetch round
     after = cluster.view("tiny")
     assert [(r.name, r.state, r.generation) for r in after.robots] == [

@@ -12,12 +12,12 @@ import shutil
 
 import psutil
 import pytest
-from control_helpers import wait_until
 
 from fleet.control import certificates as c
 from fleet.control import protocol as p
 from fleet.control.session import open_client
 from fleet.errors import ControlError
+from fleet.testing.poll import poll
 
 pytestmark = pytest.mark.integration
 
@@ -32,7 +32,7 @@ def secured(fresh_cluster, tmp_path):
     assert made.returncode == 0, made.stdout + made.stderr
     assert {"ca.pem", "router.pem", "hostA.pem", "hostB.pem", "operator.pem"} <= set(json.loads(made.stdout)["created"])
     cluster.scheme = "tls"
-    cluster.start_router(certs / "router.json5")
+    cluster.start_router(zenoh_config=certs / "router.json5")
     cluster.start_agent("hostA", certs / "agent-hostA.json5")
     cluster.start_agent("hostB", certs / "agent-hostB.json5")
     return cluster, spec, certs
@@ -53,7 +53,12 @@ def test_mutual_tls_and_access_rules(secured, tmp_path):
             "hostB",
         }
 
-    assert wait_until(agents_online, 20), cluster.log("agent-hostA") + cluster.log("router")
+    poll(
+        agents_online,
+        timeout=20,
+        what="both agents online",
+        explain=lambda: cluster.log("agent-hostA") + cluster.log("router"),
+    )
     deployed = fleet_cli(cluster, "deploy", str(spec), config=operator)
     assert deployed.returncode == 0, deployed.stdout + deployed.stderr
 
@@ -136,7 +141,7 @@ def test_refused_session_is_a_control_error(fresh_cluster, tmp_path):
     certs = tmp_path / "certs"
     assert cluster.cli("certs", str(cluster.spec()), "--out", str(certs)).returncode == 0
     cluster.scheme = "tls"
-    cluster.start_router(certs / "router.json5")
+    cluster.start_router(zenoh_config=certs / "router.json5")
     with pytest.raises(ControlError, match="no client certificate"):
         open_client([cluster.endpoint])
     # And an agent started with another fleet's files tells which file and why, then exits.

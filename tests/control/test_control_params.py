@@ -7,7 +7,9 @@ import signal
 
 import pytest
 import yaml
-from control_helpers import robot, wait_until
+
+from fleet.testing.poll import poll
+from tests.control.control_helpers import robot
 
 pytestmark = pytest.mark.integration
 
@@ -46,5 +48,15 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
 
     cluster.kill("agent-hostA", signal.SIGKILL)
     cluster.start_agent("hostA")
-    assert wait_until(lambda: robot(cluster.view("tiny"), "robot1").state == "running", 30)
-    assert wait_until(lambda: param(cluster, "get", "robot1", "controller", "max_speed").stdout.strip() == "1.0", 30)
+    poll(
+        lambda: robot(cluster.view("tiny"), "robot1").state,
+        until=lambda state: state == "running",
+        timeout=30,
+        what="robot1 restored by its agent",
+    )
+    poll(
+        lambda: param(cluster, "get", "robot1", "controller", "max_speed").stdout.strip(),
+        until=lambda value: value == "1.0",
+        timeout=30,
+        what="robot1's max_speed to read 1.0 after the restart",
+    )

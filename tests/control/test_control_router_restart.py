@@ -9,7 +9,8 @@ import time
 
 import psutil
 import pytest
-from control_helpers import wait_until
+
+from fleet.testing.poll import poll
 
 pytestmark = pytest.mark.integration
 
@@ -43,7 +44,9 @@ def test_robots_keep_running_and_agents_reconnect_when_the_router_restarts(fresh
         agents = {a.name: a.online for a in cluster.view("tiny").agents}
         return agents.get("hostA") and agents.get("hostB")
 
-    assert wait_until(both_agents_back, 15, interval=0.05), cluster.log("agent-hostA")
+    poll(
+        both_agents_back, timeout=15, interval=0.05, what="both agents back", explain=lambda: cluster.log("agent-hostA")
+    )
     reconnected = time.monotonic() - listening
     assert reconnected < RECONNECT_WITHIN_S, f"agents took {reconnected:.1f} s to reconnect"
 
@@ -64,7 +67,7 @@ def test_robots_keep_running_and_agents_reconnect_when_the_router_restarts(fresh
         rows = [r for r in cluster.view("tiny").robots if r.agent == "hostB"]
         return {r.name for r in rows} == hostb and all(r.generation == first.generation for r in rows)
 
-    assert wait_until(hostb_restored, 20), cluster.log("agent-hostB")
+    poll(hostb_restored, timeout=20, what="hostB's robots restored", explain=lambda: cluster.log("agent-hostB"))
     again = cluster.deploy(cluster.spec())
     assert again.ok
     hosta_pids = {name: group for name, group in pids.items() if name not in hostb}

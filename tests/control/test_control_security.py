@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import pytest
-from control_helpers import wait_until
 
 from fleet.control import protocol as p
 from fleet.control.session import open_client
 from fleet.errors import ControlError
+from fleet.testing.poll import poll
+
+pytestmark = pytest.mark.integration
 
 
 def write(path, text):
@@ -48,7 +50,7 @@ def test_clients_without_credentials_cannot_query_or_deploy(fresh_cluster, crede
             statuses, _ = client.status()
             return {s.agent.name for s in statuses} >= {"hostA", "hostB"}
 
-    assert wait_until(agents_answer, 15), cluster.log("agent-hostA")
+    poll(agents_answer, timeout=15, what="both agents to answer status", explain=lambda: cluster.log("agent-hostA"))
 
     for config in (None, credentials["wrong"]):
         with pytest.raises(ControlError, match="cannot reach"):

@@ -6,10 +6,12 @@ import json
 import signal
 import time
 
-import psutil
 import pytest
 import yaml
-from control_helpers import REPO, Cluster, robot, wait_until
+
+from fleet.testing.poll import poll
+from tests.checkout import FLEETS
+from tests.control.control_helpers import Cluster, robot, wait_processes_gone
 
 pytestmark = pytest.mark.integration
 
@@ -17,7 +19,7 @@ pytestmark = pytest.mark.integration
 @pytest.fixture(scope="module")
 def two_robots(tmp_path_factory, domain_id):
     cluster = Cluster(tmp_path_factory.mktemp("two_robots"), domain_id)
-    data = yaml.safe_load((REPO / "fleets" / "two_robots.yaml").read_text())
+    data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
     data["ros"]["domain_id"] = domain_id
     data["agents"] = {"hostA": {}, "hostB": {}}
     data["defaults"]["agent"] = "hostA"
@@ -56,7 +58,9 @@ def test_deploy_status_and_noop_redeploy(two_robots):
         view = cluster.view("two_robots")
         return all(robot(view, name).pose for name in ("robot1", "robot2")) and view
 
-    assert wait_until(posed, 30), cluster.view("two_robots").robots
+    poll(
+        posed, timeout=30, what="poses of both robots in status", explain=lambda: str(cluster.view("two_robots").robots)
+    )
     before = pids(cluster.view("two_robots"))
     again = cluster.cli("deploy", str(cluster.spec_file), "--connect", cluster.endpoint)
     assert again.returncode == 0 and "nothing changed" in again.stdout, again.stdout
@@ -121,12 +125,13 @@ def test_killed_agent_goes_offline_and_comes_back(two_robots):
         view = cluster.view("two_robots")
         return robot(view, "robot2").state == "offline" and view
 
-    assert wait_until(offline, 3.0) and time.monotonic() - started < 3.0
-    assert wait_until(lambda: not any(psutil.pid_exists(pid) for pid in robot2_pids), 3.0)
+    poll(offline, timeout=3.0, what="robot2 shown offline after its agent's SIGKILL")
+    assert time.monotonic() - started < 3.0
+    wait_processes_gone(robot2_pids, 3.0)
     cluster.start_agent("hostB")
 
     def restored():
         row = robot(cluster.view("two_robots"), "robot2")
         return row.state == "running" and row.running == row.total
 
-    assert wait_until(restored, 60), cluster.log("agent-hostB")
+    poll(restored, timeout=60, what="robot2 running again", explain=lambda: cluster.log("agent-hostB"))

@@ -14,11 +14,12 @@ import time
 
 import pytest
 import yaml
-from control_helpers import DATA, Cluster, robot, wait_until
 
 from fleet.control import protocol as p
 from fleet.control.view import build_view, locate_world
 from fleet.errors import ControlError, FleetError
+from fleet.testing.poll import poll
+from tests.control.control_helpers import DATA, Cluster, robot
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -238,7 +239,13 @@ def test_robots_driving_into_each_other_show_as_contacts_and_in_a_snapshot(bump,
         worlds = cluster.view("bump").worlds
         return worlds and worlds[0].contacts["count"] > 0
 
-    assert wait_until(bumped, 60, interval=0.5), (cluster.view("bump"), cluster.log("agent-hostB"))
+    poll(
+        bumped,
+        timeout=60,
+        interval=0.5,
+        what="a contact in the world's status",
+        explain=lambda: f"{cluster.view('bump')}\n{cluster.log('agent-hostB')}",
+    )
 
     status = cluster.cli("status", "--json", "--fleet", "bump", *connect)
     assert status.returncode == 0, status.stdout + status.stderr

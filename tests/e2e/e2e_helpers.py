@@ -11,8 +11,8 @@ from pathlib import Path
 
 import yaml
 
-REPO = Path(__file__).resolve().parents[2]
-FLEETS = REPO / "fleets"
+from tests.checkout import FLEETS
+
 TWO_ROBOTS = FLEETS / "two_robots.yaml"
 SAFETY_STOP = FLEETS / "safety_stop.yaml"
 

@@ -5,9 +5,9 @@ agent named in the spec."""
 from __future__ import annotations
 
 import pytest
-from e2e_helpers import FLEETS
 
 from fleet.testing import running_fleet
+from tests.e2e.e2e_helpers import FLEETS
 
 pytestmark = pytest.mark.integration
 

@@ -9,9 +9,9 @@ import time
 
 import psutil
 import pytest
-from e2e_helpers import TWO_ROBOTS, RouteProgress, node_pids, spec_with, wait_driving
 
 from fleet.testing import Pose, running_fleet
+from tests.e2e.e2e_helpers import TWO_ROBOTS, RouteProgress, node_pids, spec_with, wait_driving
 
 pytestmark = pytest.mark.integration
 

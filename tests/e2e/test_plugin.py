@@ -12,11 +12,11 @@ import sys
 
 import psutil
 import pytest
-from e2e_helpers import SAFETY_STOP
 
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
 from fleet.testing.isolation import with_domain_id
+from tests.e2e.e2e_helpers import SAFETY_STOP
 
 pytestmark = pytest.mark.integration
 

@@ -4,7 +4,8 @@ waypoint lies beyond a crate), and lets it go on once the obstacle is gone."""
 from __future__ import annotations
 
 import pytest
-from e2e_helpers import SAFETY_STOP, spec_with
+
+from tests.e2e.e2e_helpers import SAFETY_STOP, spec_with
 
 pytestmark = pytest.mark.integration
 

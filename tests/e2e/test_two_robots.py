@@ -5,9 +5,9 @@ runs flat stops its robot, and a robot added by redeploying joins without distur
 from __future__ import annotations
 
 import pytest
-from e2e_helpers import TWO_ROBOTS, PoseWatch, RouteProgress, node_pids, odom_speeds, spec_with, wait_driving
 
 from fleet.testing import running_fleet
+from tests.e2e.e2e_helpers import TWO_ROBOTS, PoseWatch, RouteProgress, node_pids, odom_speeds, spec_with, wait_driving
 
 pytestmark = pytest.mark.integration
 

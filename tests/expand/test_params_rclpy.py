@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from tests.conftest import FLEETS, run_fleet
+from tests.checkout import FLEETS, run_fleet
 
 # A node that accepts whatever its parameter files give it and prints what it got.
 PRINT_PARAMETERS = """

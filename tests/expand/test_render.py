@@ -10,7 +10,7 @@ import yaml
 
 from fleet.expand import expand_fleet
 from fleet.spec import parse_spec
-from tests.conftest import FLEETS, run_fleet
+from tests.checkout import FLEETS, run_fleet
 
 
 def render_to(tmp_path: Path, spec: Path, *extra: str) -> Path:

@@ -13,7 +13,7 @@ import pytest
 
 from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.ros import RosProbe
-from tests.conftest import FLEETS, run_fleet
+from tests.checkout import FLEETS, run_fleet
 
 pytestmark = pytest.mark.integration
 

@@ -1,4 +1,4 @@
-"""One fleet on three computers: Linux network namespaces on one LAN (tests/multihost/netns.py).
+"""One fleet on three computers: Linux network namespaces on one LAN (fleet.testing.netns).
 
 `sim` runs the router and the agent `sim_host` (the world and the fleet's DDS discovery server);
 `rack_a` and `rack_b` each run an agent with two robots.  Everything goes through the `fleet`
@@ -16,7 +16,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +23,7 @@ import pytest
 import yaml
 
 from fleet.testing.netns import Lan, netns_problem
+from fleet.testing.poll import poll
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked
 
 pytestmark = pytest.mark.integration
@@ -156,16 +156,15 @@ class Fleet:
         return {row["name"]: row for row in self.status()["robots"]}
 
     def wait(self, predicate, timeout: float, what: str):
-        deadline = time.monotonic() + timeout
-        last = None
-        while time.monotonic() < deadline:
-            last = self.robots()
-            if predicate(last):
-                return last
-            time.sleep(0.5)
-        states = {name: (row["state"], row.get("reason", "")) for name, row in (last or {}).items()}
-        raise AssertionError(
-            f"timed out after {timeout:.0f} s waiting for {what}; robots: {states}\n{self.log_tails()}"
+        """Until predicate(robots) holds for the robots in `fleet status`; returns those robots."""
+        return poll(
+            self.robots,
+            until=predicate,
+            timeout=timeout,
+            interval=0.5,
+            what=what,
+            describe=lambda robots: f"robots: {states(robots)}",
+            explain=self.log_tails,
         )
 
     def log_tails(self, lines: int = 15) -> str:
@@ -201,10 +200,18 @@ def fleet(request, lan, tmp_path, ros_domain):
         running.stop()
         # Everything the router and agents started (nodes, worlds, discovery servers) carries this
         # test's marker (conftest) through `ip netns exec`: stopping them must have ended it all.
-        deadline = time.monotonic() + 10
-        while (leftovers := processes_marked(os.environ[MARKER_VARIABLE])) and time.monotonic() < deadline:
-            time.sleep(0.2)
-        assert not leftovers, "left running: " + "; ".join(" ".join(p.cmdline()[:6]) for p in leftovers)
+        poll(
+            lambda: processes_marked(os.environ[MARKER_VARIABLE]),
+            until=lambda leftovers: not leftovers,
+            timeout=10,
+            interval=0.2,
+            what="everything the fleet started to end",
+            describe=lambda leftovers: "left running: " + "; ".join(" ".join(p.cmdline()[:6]) for p in leftovers),
+        )
+
+
+def states(robots: dict[str, dict]) -> dict[str, tuple[str, str]]:
+    return {name: (row["state"], row.get("reason", "")) for name, row in robots.items()}
 
 
 def poses(robots: dict[str, dict]) -> dict[str, tuple[float, float]]:
@@ -218,14 +225,14 @@ def moved(before, after, name, distance=0.2) -> bool:
 
 def test_fleet_across_three_computers(fleet, tmp_path):
     # Agents need a moment to reach the router; deploy waits for robots, not for agents.
-    deadline = time.monotonic() + 60
-    agents: dict = {}
-    while time.monotonic() < deadline and not set(agents) >= {"sim_host", "rack_a", "rack_b"}:
-        time.sleep(0.5)
-        try:
-            agents = {row["name"]: row for row in fleet.status()["agents"] if row["online"]}
-        except AssertionError:  # the router is not listening yet
-            continue
+    agents = poll(
+        lambda: {row["name"]: row for row in fleet.status()["agents"] if row["online"]},
+        until=lambda online: set(online) >= {"sim_host", "rack_a", "rack_b"},
+        timeout=60,
+        interval=0.5,
+        retry_on=(AssertionError,),  # the router is not listening yet
+        what="the three agents online",
+    )
     assert agents["rack_a"]["address"] == fleet.lan.hosts["rack_a"].address
 
     deploy = fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--timeout", "150")

@@ -30,7 +30,7 @@ class NodeProcess:
 
     def __init__(self, module: str, args: list[str], env: dict, log: Path):
         self.log = log
-        self._out = open(log, "w")  # noqa: SIM115 (the process writes to it until close())
+        self._out = open(log, "w")  # noqa: SIM115 (the process writes to it until wait() closes it)
         self.proc = subprocess.Popen(
             [PYTHON, "-m", f"fleet.nodes.{module}", *args],
             env=env,

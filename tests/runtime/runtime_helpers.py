@@ -1,19 +1,36 @@
-"""Small helpers shared by the runtime tests (imported by name: tests/ is not a package)."""
+"""Helpers of the runtime tests: a throw-away ament prefix with small shell-script "nodes", and
+whether a process is alive."""
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
+import os
+import textwrap
+from pathlib import Path
+
+INDEX = Path("share") / "ament_index" / "resource_index" / "packages"
 
 
-def wait_for(condition: Callable[[], object], timeout: float = 10.0, interval: float = 0.05):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        result = condition()
-        if result:
-            return result
-        time.sleep(interval)
-    raise AssertionError(f"condition not met within {timeout} s")
+class FakePrefix:
+    """An ament prefix under tmp_path; add executables to package `demo` (or others)."""
+
+    def __init__(self, root: Path):
+        self.root = root
+        root.mkdir(parents=True, exist_ok=True)
+
+    def add(self, executable: str, script: str, package: str = "demo") -> Path:
+        (self.root / INDEX).mkdir(parents=True, exist_ok=True)
+        (self.root / INDEX / package).touch()
+        path = self.root / "lib" / package / executable
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(textwrap.dedent(script).lstrip())
+        path.chmod(0o755)
+        return path
+
+    def env(self, **extra: str) -> dict[str, str]:
+        env = dict(os.environ)
+        env["AMENT_PREFIX_PATH"] = str(self.root)
+        env.update(extra)
+        return env
 
 
 def pid_alive(pid: int) -> bool:

@@ -7,7 +7,9 @@ import subprocess
 import sys
 
 import pytest
-from runtime_helpers import pid_alive, wait_for
+
+from fleet.testing.poll import poll
+from tests.runtime.runtime_helpers import pid_alive
 
 
 def fleet_run(prefix, *args, **kwargs) -> subprocess.Popen:
@@ -83,7 +85,13 @@ def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
         runner.send_signal(signum)
         runner.wait(timeout=20)
         assert runner.returncode == 0, runner.stderr.read()
-        wait_for(lambda: not any(pid_alive(pid) for pid in pids), timeout=5)
+        poll(
+            lambda: [pid for pid in pids if pid_alive(pid)],
+            until=lambda alive: not alive,
+            timeout=5,
+            interval=0.05,
+            what="the nodes to end",
+        )
     finally:
         runner.kill()
         runner.communicate()

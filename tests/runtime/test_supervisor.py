@@ -11,12 +11,13 @@ import textwrap
 import time
 
 import pytest
-from runtime_helpers import pid_alive, wait_for
 
 from fleet.errors import FleetError, LaunchFileError
 from fleet.runtime import supervisor
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession, backoff_delay
+from fleet.testing.poll import poll
+from tests.runtime.runtime_helpers import pid_alive
 
 CHATTY = """\
 #!/bin/sh
@@ -32,6 +33,11 @@ DEAF_TO_SIGINT = "#!/bin/sh\ntrap '' INT\necho ready\nexec sleep 100\n"
 STUBBORN = "#!/bin/sh\ntrap '' INT TERM\necho ready\nexec sleep 100\n"
 # A node with a child process of its own.
 PARENT = "#!/bin/sh\nsleep 100 &\necho child $!\nwait\n"
+
+
+def child_lines(session) -> list[str]:
+    """The lines of parent-1's log that name its child."""
+    return [line for line in session.tail("parent-1") if line.startswith("child ")]
 
 
 def session_for(prefix, write_launch, tmp_path, nodes: str, **kwargs) -> LaunchSession:
@@ -52,7 +58,12 @@ def test_logs_are_captured_and_tailed(prefix, write_launch, tmp_path):
         on_line=lambda process, line: screen.append((process, line)),
     )
     with session:
-        wait_for(lambda: "to stderr" in session.tail("talk") and "to stderr" in session.tail("quiet"))
+        poll(
+            lambda: "to stderr" in session.tail("talk") and "to stderr" in session.tail("quiet"),
+            timeout=10,
+            interval=0.05,
+            what="both nodes' last line in their logs",
+        )
         lines = session.tail("/r1/talk", 100)
         assert lines[0].startswith("started with --ros-args -r __node:=talk -r __ns:=/r1")
         assert lines[1:6] == [f"line {i}" for i in range(1, 6)]
@@ -91,27 +102,46 @@ def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
         first = session.status()[0].pid
         assert first is not None
         os.kill(first, signal.SIGKILL)
-        status = wait_for(lambda: [s for s in session.status() if s.state == "running" and s.pid != first])
+        status = poll(
+            lambda: [s for s in session.status() if s.state == "running" and s.pid != first],
+            timeout=10,
+            interval=0.05,
+            what="the node respawned after the first SIGKILL",
+        )
         assert status[0].restarts == 1
         assert not pid_alive(first)
         second = status[0].pid
+        assert second is not None
         os.kill(second, signal.SIGKILL)
-        status = wait_for(lambda: [s for s in session.status() if s.state == "running" and s.pid != second])
+        status = poll(
+            lambda: [s for s in session.status() if s.state == "running" and s.pid != second],
+            timeout=10,
+            interval=0.05,
+            what="the node respawned after the second SIGKILL",
+        )
         assert status[0].restarts == 2
 
 
 def test_respawn_waits_respawn_delay(prefix, write_launch, tmp_path):
     prefix.add("quitter", "#!/bin/sh\necho bye\nexit 3\n")
+    # The delay leaves 0.7 s between the look 0.3 s into the backoff and the respawn: a test
+    # process held up for a moment on a loaded machine must not see the respawn come early.
     session = session_for(
-        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 0.5}\n"
+        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 1.0}\n"
     )
     with session:
-        wait_for(lambda: session.status()[0].state == "backoff")
+        poll(
+            lambda: session.status()[0].state,
+            until=lambda state: state == "backoff",
+            timeout=10,
+            interval=0.05,
+            what="the quitter in backoff",
+        )
         assert session.status()[0].exit_code == 3
         assert not session.done()
         time.sleep(0.3)
         assert session.status()[0].restarts == 0
-        wait_for(lambda: session.status()[0].restarts >= 1, timeout=3)
+        poll(lambda: session.status()[0].restarts, until=lambda n: n >= 1, timeout=3, interval=0.05, what="a respawn")
 
 
 def test_backoff_grows_exponentially():
@@ -145,7 +175,7 @@ def test_stop_sends_sigterm_to_a_child_ignoring_sigint(prefix, write_launch, tmp
     prefix.add("deaf", DEAF_TO_SIGINT)
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: deaf}\n", stop_timeouts=(0.5, 5.0))
     session.start()
-    wait_for(lambda: session.tail("deaf-1"))
+    poll(lambda: session.tail("deaf-1"), timeout=10, interval=0.05, what="deaf's first line")
     began = time.monotonic()
     session.stop()
     took = time.monotonic() - began
@@ -159,8 +189,9 @@ def test_stop_sends_sigkill_to_a_child_ignoring_sigterm(prefix, write_launch, tm
         prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: stubborn}\n", stop_timeouts=(0.3, 0.5)
     )
     session.start()
-    wait_for(lambda: session.tail("stubborn-1"))
+    poll(lambda: session.tail("stubborn-1"), timeout=10, interval=0.05, what="stubborn's first line")
     pid = session.status()[0].pid
+    assert pid is not None
     began = time.monotonic()
     session.stop()
     took = time.monotonic() - began
@@ -189,7 +220,7 @@ def test_nothing_left_after_stop(prefix, write_launch, tmp_path):
     prefix.add("parent", PARENT)
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent, respawn: 'true'}\n")
     session.start()
-    line = wait_for(lambda: [text for text in session.tail("parent-1") if text.startswith("child ")])[0]
+    line = poll(lambda: child_lines(session), timeout=10, interval=0.05, what="the parent to name its child")[0]
     child = int(line.split()[1])
     leader = session.status()[0].pid
     assert leader is not None
@@ -203,12 +234,12 @@ def test_node_exit_kills_what_it_left_in_its_group(prefix, write_launch, tmp_pat
     prefix.add("parent", PARENT)
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent}\n")
     with session:
-        line = wait_for(lambda: [text for text in session.tail("parent-1") if text.startswith("child ")])[0]
+        line = poll(lambda: child_lines(session), timeout=10, interval=0.05, what="the parent to name its child")[0]
         child = int(line.split()[1])
         pid = session.status()[0].pid
         assert pid is not None
         os.kill(pid, signal.SIGKILL)
-        wait_for(lambda: not pid_alive(child), timeout=5)
+        poll(lambda: pid_alive(child), until=lambda alive: not alive, timeout=5, interval=0.05, what="the child to end")
 
 
 SUPERVISING_SCRIPT = """
@@ -247,7 +278,13 @@ def test_no_orphans_when_the_supervisor_is_sigkilled(prefix, write_launch, tmp_p
         assert all(pid_alive(pid) for pid in pids)
         runner.kill()
         runner.wait(timeout=10)
-        wait_for(lambda: not any(pid_alive(pid) for pid in pids), timeout=5)
+        poll(
+            lambda: [pid for pid in pids if pid_alive(pid)],
+            until=lambda alive: not alive,
+            timeout=5,
+            interval=0.05,
+            what="the supervisor's nodes to end",
+        )
     finally:
         runner.kill()
         runner.wait()
@@ -284,7 +321,7 @@ def test_robot_isolation_shares_one_process(prefix, write_launch, tmp_path):
         assert [status.fqn for status in statuses] == ["/robot1/controller", "/robot1/battery", "/robot1/safety"]
         assert len({status.pid for status in statuses}) == 1
         assert {status.process for status in statuses} == {"composite-1"}
-        first = wait_for(lambda: session.tail("battery"))[0]
+        first = poll(lambda: session.tail("battery"), timeout=10, interval=0.05, what="the composite's first line")[0]
         assert first == (
             "started with --fleet-node controller --ros-args -r __node:=controller -r __ns:=/robot1 "
             "--fleet-node battery --ros-args -r __node:=battery -r __ns:=/robot1 "
@@ -328,10 +365,10 @@ def test_ros2_backend_runs_ros2_launch(prefix, write_launch, tmp_path, fake_ros2
         assert session.backend == "ros2"
         (status,) = session.status()
         assert status.cmd == [str(fake_ros2 / "ros2"), "launch", str(path), "robot:=r1"]
-        line = wait_for(lambda: session.tail(status.process))[0]
+        line = poll(lambda: session.tail(status.process), timeout=10, interval=0.05, what="ros2's first line")[0]
         assert line == f"fake ros2 launch {path} robot:=r1"
         pid = status.pid
-    assert not pid_alive(pid)
+    assert pid is not None and not pid_alive(pid)
 
 
 def test_auto_with_robot_isolation_uses_embedded(prefix, write_launch, tmp_path, fake_ros2):
@@ -369,6 +406,12 @@ def test_failed_respawn_does_not_take_the_others_down(prefix, write_launch, tmp_
         assert doomed_pid is not None and other_pid is not None
         doomed.unlink()
         os.kill(doomed_pid, signal.SIGKILL)
-        wait_for(lambda: session.status()[0].state == "failed")
+        poll(
+            lambda: session.status()[0].state,
+            until=lambda state: state == "failed",
+            timeout=10,
+            interval=0.05,
+            what="doomed to fail",
+        )
         assert "cannot respawn doomed-1" in session.tail("doomed-1")[-1]
         assert session.status()[1].state == "running" and pid_alive(other_pid)

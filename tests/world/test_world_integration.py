@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from fleet.testing.poll import poll
+
 pytestmark = pytest.mark.integration
 
 WORLD = """\
@@ -23,16 +25,6 @@ robots:
 - {{name: robot1, pose: {{x: 0.0, y: 0.0}}, cmd_timeout: 0.5}}
 - {{name: robot2, pose: {{x: 2.0, y: 0.0}}}}
 {extra}"""
-
-
-def wait_for(predicate, timeout, what):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 def read_status(path: Path):
@@ -67,8 +59,13 @@ class Listener:
         self.cmd = self.node.create_publisher(Twist, "/robot1/cmd_vel", 10)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def _on_clock(self, msg):
         self.clock_count += 1
@@ -79,7 +76,11 @@ class Listener:
         self.cmd.publish(msg)
 
     def close(self):
-        self.executor.shutdown(timeout_sec=1.0)
+        # The spinning thread ends first: shutting the executor down under a callback it runs
+        # makes that thread fail (rclpy's guard condition is gone, or the node's handle).
+        self._stop.set()
+        self.thread.join()
+        self.executor.shutdown()
         self.node.destroy_node()
         self.rclpy.shutdown(context=self.context)
 
@@ -123,8 +124,8 @@ def world(tmp_path, ros_env):
 
 def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
     config, status_file, ros, proc = world
-    wait_for(lambda: "robot1" in ros.odom and "robot2" in ros.odom, 20, "odom from both robots")
-    assert wait_for(lambda: ros.clock_count > 10, 5, "/clock")
+    poll(lambda: "robot1" in ros.odom and "robot2" in ros.odom, timeout=20, interval=0.05, what="odom from both robots")
+    poll(lambda: ros.clock_count, until=lambda count: count > 10, timeout=5, interval=0.05, what="/clock")
 
     # Drive robot1 backwards, away from everything: its odom moves, robot2's does not.  (Not
     # forwards: as fast as possible the world can cover the 1.6 m to robot2 before our odom
@@ -133,7 +134,7 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
         ros.drive(-0.5)
         return ros.odom["robot1"].pose.pose.position.x < -0.3
 
-    wait_for(robot1_moved, 10, "robot1's odom to advance")
+    poll(robot1_moved, timeout=10, interval=0.05, what="robot1's odom to advance")
     robot2 = ros.odom["robot2"]
     assert abs(robot2.pose.pose.position.x) < 0.01 and abs(robot2.twist.twist.linear.x) < 1e-3
     assert ros.odom["robot1"].header.frame_id == "robot1/odom"
@@ -145,7 +146,7 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
         status = read_status(status_file)
         return status if status and status["contacts"]["count"] >= 1 else None
 
-    status = wait_for(contact_reported, 20, "a contact in the status file")
+    status = poll(contact_reported, timeout=20, interval=0.05, what="a contact in the status file")
     first = status["contacts"]["last"][0]
     assert (first["a"], first["b"], first["kind"]) == ("robot1", "robot2", "robot-robot")
     for _ in range(10):  # robot1 keeps pushing (robot2 may slide aside): they never overlap
@@ -156,20 +157,38 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
         time.sleep(0.05)
 
     # Without commands robot1 stops once its last one is older than cmd_timeout.
-    wait_for(lambda: abs(ros.odom["robot1"].twist.twist.linear.x) < 1e-3, 10, "robot1 to stop after cmd_timeout")
+    poll(
+        lambda: ros.odom["robot1"].twist.twist.linear.x,
+        until=lambda speed: abs(speed) < 1e-3,
+        timeout=10,
+        interval=0.05,
+        what="robot1 to stop after cmd_timeout",
+    )
 
     # A robot joins by rewriting world.yaml, then leaves.
     config.write_text(WORLD.format(extra="- {name: robot3, pose: {x: 0.0, y: -3.0}}\n"))
-    wait_for(lambda: "robot3" in (read_status(status_file) or {}).get("robots", {}), 10, "robot3 in the status")
-    wait_for(lambda: "robot3" in ros.odom, 10, "odom from robot3")
+    poll(
+        lambda: "robot3" in (read_status(status_file) or {}).get("robots", {}),
+        timeout=10,
+        interval=0.05,
+        what="robot3 in the status",
+    )
+    poll(lambda: "robot3" in ros.odom, timeout=10, interval=0.05, what="odom from robot3")
     assert proc.poll() is None
     config.write_text(WORLD.format(extra=""))
-    wait_for(
+    poll(
         lambda: "robot3" not in (read_status(status_file) or {}).get("robots", {"robot3": 1}),
-        10,
-        "robot3 to leave the status",
+        timeout=10,
+        interval=0.05,
+        what="robot3 to leave the status",
     )
-    wait_for(lambda: ros.node.count_publishers("/robot3/odom") == 0, 10, "robot3's publishers to go away")
+    poll(
+        lambda: ros.node.count_publishers("/robot3/odom"),
+        until=lambda count: count == 0,
+        timeout=10,
+        interval=0.05,
+        what="robot3's publishers to go away",
+    )
     assert set(read_status(status_file)["robots"]) == {"robot1", "robot2"}
     assert read_status(status_file)["errors"] == []
 
@@ -205,11 +224,19 @@ def test_the_world_reports_each_robots_data_flow(ros_env):
         assert channel.link() == {"cmd_age": None, "odom_subscribers": 0}
         with RosProbe() as probe:
             probe.subscribe("/r1/odom", Odometry)
-            deadline = time.monotonic() + 20
-            while channel.link()["cmd_age"] is None or not channel.link()["odom_subscribers"]:
-                assert time.monotonic() < deadline, f"no command or subscriber seen: {channel.link()}"
+
+            def link_seen():
                 probe.publish("/r1/cmd_vel", Twist())
-                probe.executor.spin_once(timeout_sec=0.1)
+                return channel.link()
+
+            poll(
+                link_seen,
+                until=lambda link: link["cmd_age"] is not None and link["odom_subscribers"],
+                timeout=20,
+                interval=0.1,
+                pause=probe.spin,
+                what="a command and an odom subscriber seen by the bridge",
+            )
             cmd_age = channel.link()["cmd_age"]
             assert cmd_age is not None and 0.0 <= cmd_age < 5.0
         channel.command = Command(0.5, 0.0, math.inf, math.inf)  # a benchmark's never-expiring command

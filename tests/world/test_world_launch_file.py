@@ -4,7 +4,6 @@ stand-in modules recording what it builds."""
 import sys
 import types
 from pathlib import Path
-from typing import ClassVar
 
 LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "world.launch.py"
 
@@ -15,8 +14,6 @@ class _Recorder:
 
 
 class _Config:
-    values: ClassVar[dict] = {}
-
     def __init__(self, name):
         self.name = name
 
