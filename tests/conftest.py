@@ -18,7 +18,6 @@ os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
 
 REPO = Path(__file__).resolve().parent.parent
 FLEETS = REPO / "fleets"
-TEMPLATES = REPO / "templates"
 PYTHON = sys.executable
 
 
