@@ -74,15 +74,9 @@ MIB = 1024 * 1024
 
 
 def pss_and_rss(pid: int) -> tuple[int, int]:
-    """Bytes of PSS and RSS of one process, from /proc/<pid>/smaps_rollup."""
-    pss = rss = 0
-    with open(f"/proc/{pid}/smaps_rollup") as handle:
-        for line in handle:
-            if line.startswith("Pss:"):
-                pss = int(line.split()[1]) * 1024
-            elif line.startswith("Rss:"):
-                rss = int(line.split()[1]) * 1024
-    return pss, rss
+    """Bytes of PSS and RSS of one process."""
+    memory = psutil.Process(pid).memory_full_info()
+    return memory.pss, memory.rss
 
 
 class Probe:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+import psutil
+
 
 def wait_for(condition: Callable[[], object], timeout: float = 10.0, interval: float = 0.05):
     deadline = time.monotonic() + timeout
@@ -19,8 +21,6 @@ def wait_for(condition: Callable[[], object], timeout: float = 10.0, interval: f
 def pid_alive(pid: int) -> bool:
     """True if `pid` is a live (non-zombie) process."""
     try:
-        with open(f"/proc/{pid}/stat", "rb") as handle:
-            stat = handle.read()
-    except OSError:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
         return False
-    return stat[stat.rindex(b")") + 2 :].split()[0] != b"Z"
