@@ -190,7 +190,7 @@ class LaunchSession:
         return self._find(node).output.tail(lines)
 
     def log_file(self, node: str) -> Path:
-        return self._find(node).output.log.path
+        return self._find(node).output.path
 
     def done(self) -> bool:
         """True when nothing runs and nothing will be respawned."""
