@@ -202,7 +202,8 @@ def report(results: list[dict], info: dict[str, str]) -> str:
         "Machine: " + ", ".join(f"{key} {value}" for key, value in info.items()) + ".",
         "The 2 cores are shared with other engineers' work, so start-up times carry noise.",
         "",
-        "| robots | isolation | processes | start-up (s) | start-up per robot (s) | start-up CPU per robot (s) | PSS per robot (MiB) | RSS per robot (MiB) | PSS total (MiB) |",
+        "| robots | isolation | processes | start-up (s) | start-up per robot (s) | start-up CPU per robot (s) "
+        "| PSS per robot (MiB) | RSS per robot (MiB) | PSS total (MiB) |",
         "|---:|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for row in results:

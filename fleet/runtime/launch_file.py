@@ -421,9 +421,8 @@ class _Reader:
             return self.substitutions(value, line)
         if isinstance(value, (bool, int, float)):
             return value
-        if isinstance(value, list) and value:
-            if all(isinstance(element, (bool, int, float, str)) for element in value):
-                return [self.param_value(element, line) for element in value]
+        if isinstance(value, list) and value and all(isinstance(element, (bool, int, float, str)) for element in value):
+            return [self.param_value(element, line) for element in value]
         raise self.error(
             f"a parameter value must be a bool, int, float, string or a non-empty list of those (got {value!r})",
             line,
@@ -859,7 +858,7 @@ def _parse(
     try:
         text = path.read_text()
     except OSError as problem:
-        raise LaunchFileError(f"cannot read launch file: {problem.strerror}", Location(path))
+        raise LaunchFileError(f"cannot read launch file: {problem.strerror}", Location(path)) from None
     for name in launch_args:
         if not _NAME_TOKEN.fullmatch(name):
             raise LaunchFileError(f"invalid launch argument name '{name}'", Location(path))

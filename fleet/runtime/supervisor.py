@@ -8,6 +8,7 @@ leaves no orphans, while a short-lived spawning thread would kill them at once.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import os
 import shutil
@@ -245,10 +246,8 @@ class LaunchSession:
         return env
 
     def _prepare(self) -> list[ProcessSpec]:
-        try:
+        with contextlib.suppress(OSError):  # a read-only environment: fleet_nodes lookups will say what is missing
             ament.ensure_ament_prefix()
-        except OSError:
-            pass  # a read-only environment: fleet_nodes lookups will say what is missing
         ros2 = self._ros2()
         backend = self.requested_backend
         if backend == "auto":
