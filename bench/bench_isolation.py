@@ -74,15 +74,9 @@ MIB = 1024 * 1024
 
 
 def pss_and_rss(pid: int) -> tuple[int, int]:
-    """Bytes of PSS and RSS of one process, from /proc/<pid>/smaps_rollup."""
-    pss = rss = 0
-    with open(f"/proc/{pid}/smaps_rollup") as handle:
-        for line in handle:
-            if line.startswith("Pss:"):
-                pss = int(line.split()[1]) * 1024
-            elif line.startswith("Rss:"):
-                rss = int(line.split()[1]) * 1024
-    return pss, rss
+    """Bytes of PSS and RSS of one process."""
+    memory = psutil.Process(pid).memory_full_info()
+    return memory.pss, memory.rss
 
 
 class Probe:
@@ -208,7 +202,8 @@ def report(results: list[dict], info: dict[str, str]) -> str:
         "Machine: " + ", ".join(f"{key} {value}" for key, value in info.items()) + ".",
         "The 2 cores are shared with other engineers' work, so start-up times carry noise.",
         "",
-        "| robots | isolation | processes | start-up (s) | start-up per robot (s) | start-up CPU per robot (s) | PSS per robot (MiB) | RSS per robot (MiB) | PSS total (MiB) |",
+        "| robots | isolation | processes | start-up (s) | start-up per robot (s) | start-up CPU per robot (s) "
+        "| PSS per robot (MiB) | RSS per robot (MiB) | PSS total (MiB) |",
         "|---:|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for row in results:

@@ -634,7 +634,7 @@ def available_backends() -> list[str]:
 
 def stop_leftover_processes(state_dir: Path) -> int:
     """Processes left by a previous run of this agent (found by their environment marker)."""
-    from fleet.testing.processes import processes_marked, terminate
+    from fleet.runtime.processes import processes_marked, terminate
 
     leftovers = processes_marked(str(state_dir), UNIT_MARKER)
     if leftovers:

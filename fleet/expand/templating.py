@@ -8,9 +8,9 @@ string and can never add an action or a node to the launch file.
 
 from __future__ import annotations
 
+import importlib.resources
 import json
 import math
-import sys
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,7 +19,6 @@ from typing import Any
 import jinja2
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 
-import fleet
 from fleet.errors import Location, TemplateError
 
 TEMPLATE_SUFFIX = ".launch.yaml.j2"
@@ -27,12 +26,10 @@ DEFAULTS_SUFFIX = ".params.yaml"
 
 
 def builtin_template_dirs() -> list[Path]:
-    """The templates shipped with fleet: the source checkout's templates/, or the installed copy."""
-    candidates = [
-        Path(fleet.__file__).resolve().parent.parent / "templates",
-        Path(sys.prefix) / "share" / "fleet" / "templates",
-    ]
-    return [path for path in candidates if path.is_dir()]
+    """The templates shipped with fleet: the package fleet.templates (the top-level templates/
+    folder, installed as package data; an editable install maps it onto the checkout's folder)."""
+    # Installed wheels are unpacked, so the package's resources are files in a directory.
+    return [Path(str(importlib.resources.files("fleet.templates")))]
 
 
 def yaml_literal(value: Any) -> str:

@@ -28,8 +28,9 @@ from typing import Any
 
 import yaml
 
-from fleet.errors import FleetError, LaunchFileError, Location
+from fleet.errors import FleetError, LaunchFileError, Location, SpecError
 from fleet.runtime import ament
+from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml
 
 # ---------------------------------------------------------------------------------------------
 # Results
@@ -78,29 +79,25 @@ class LaunchPlan:
 
 class _Map(dict[Any, Any]):
     """A YAML mapping that remembers where it and each of its keys start (1-based lines).
-    _LineLoader builds every mapping as one."""
+    _with_lines makes every mapping one."""
 
     line: int | None = None
     key_lines: dict[Any, int]
 
 
-class _LineLoader(yaml.SafeLoader):
-    pass
-
-
-def _construct_map(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
-    loader.flatten_mapping(node)
-    result = _Map()
-    result.line = node.start_mark.line + 1
-    result.key_lines = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        result[key] = loader.construct_object(value_node, deep=True)
-        result.key_lines[key] = key_node.start_mark.line + 1
-    return result
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
+def _with_lines(value: Any, path: tuple, source: SourceMap) -> Any:
+    """`value` (data from load_yaml) with each mapping a _Map holding its lines from `source`."""
+    if isinstance(value, dict):
+        result = _Map()
+        result.line = source.positions[path][0]
+        result.key_lines = {}
+        for key, item in value.items():
+            result[key] = _with_lines(item, (*path, key), source)
+            result.key_lines[key] = source.key_positions[(*path, key)][0]
+        return result
+    if isinstance(value, list):
+        return [_with_lines(item, (*path, index), source) for index, item in enumerate(value)]
+    return value
 
 
 # ---------------------------------------------------------------------------------------------
@@ -287,6 +284,10 @@ _ACTION_KEYS = {
 }
 
 
+def _line(error: FleetError) -> int | None:
+    return error.location.line if error.location is not None else None
+
+
 class _Reader:
     """Pass 1: YAML data to action objects, refusing anything outside the supported subset."""
 
@@ -298,12 +299,12 @@ class _Reader:
 
     def read(self, text: str) -> list:
         try:
-            data = yaml.load(text, Loader=_LineLoader)
-        except yaml.YAMLError as problem:
-            mark = getattr(problem, "problem_mark", None)
-            line = mark.line + 1 if mark is not None else None
-            reason = getattr(problem, "problem", None) or str(problem)
-            raise self.error(f"invalid YAML: {reason}", line) from None
+            loaded, source = load_yaml(text, self.path)
+        except YamlSyntaxError as problem:
+            raise self.error(f"invalid YAML: {problem.problem}", _line(problem)) from None
+        except SpecError as problem:  # duplicate keys and the like, worded by the reader
+            raise self.error(problem.message, _line(problem)) from None
+        data = _with_lines(loaded, (), source)
         if not isinstance(data, _Map) or set(data) != {"launch"}:
             raise self.error("a launch file is a mapping with the single key 'launch'", 1)
         actions = data["launch"]
@@ -421,7 +422,7 @@ class _Reader:
             return self.substitutions(value, line)
         if isinstance(value, (bool, int, float)):
             return value
-        if isinstance(value, list) and value and all(isinstance(e, (bool, int, float, str)) for e in value):
+        if isinstance(value, list) and value and all(isinstance(element, (bool, int, float, str)) for element in value):
             return [self.param_value(element, line) for element in value]
         raise self.error(
             f"a parameter value must be a bool, int, float, string or a non-empty list of those (got {value!r})",

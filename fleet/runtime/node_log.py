@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import collections
-import os
+import logging
 import threading
 from collections.abc import Callable
+from logging.handlers import RotatingFileHandler
 from pathlib import Path
 from typing import IO
 
@@ -14,47 +15,20 @@ BACKUPS = 3
 TAIL_LINES = 1000
 
 
-class RotatingLog:
-    """Appends lines to `path`; past `max_bytes` it shifts path -> path.1 -> ... -> path.N."""
-
-    def __init__(self, path: Path, max_bytes: int = MAX_BYTES, backups: int = BACKUPS):
-        self.path = Path(path)
-        self.max_bytes = max_bytes
-        self.backups = backups
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "a", encoding="utf-8", errors="replace")  # noqa: SIM115 (the log stays open)
-        self._size = self._file.tell()
-
-    def write(self, line: str) -> None:
-        data = line + "\n"
-        if self._size + len(data) > self.max_bytes and self._size > 0:
-            self._rotate()
-        self._file.write(data)
-        self._file.flush()
-        self._size += len(data)
-
-    def _rotate(self) -> None:
-        self._file.close()
-        for index in range(self.backups - 1, 0, -1):
-            older = self.path.with_name(f"{self.path.name}.{index}")
-            if older.exists():
-                os.replace(older, self.path.with_name(f"{self.path.name}.{index + 1}"))
-        if self.backups > 0:
-            os.replace(self.path, self.path.with_name(f"{self.path.name}.1"))
-        else:
-            self.path.unlink(missing_ok=True)
-        self._file = open(self.path, "a", encoding="utf-8", errors="replace")  # noqa: SIM115 (the log stays open)
-        self._size = 0
-
-    def close(self) -> None:
-        self._file.close()
+def rotating_file(path: Path, max_bytes: int = MAX_BYTES, backups: int = BACKUPS) -> RotatingFileHandler:
+    """A log file that, past `max_bytes`, shifts path -> path.1 -> ... -> path.N."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handler = RotatingFileHandler(path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8", errors="replace")
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    return handler
 
 
 class ProcessOutput:
     """Everything one supervised process (all its incarnations) printed."""
 
     def __init__(self, path: Path, echo: Callable[[str], None] | None = None):
-        self.log = RotatingLog(path)
+        self.path = Path(path)
+        self.log = rotating_file(self.path)
         self.echo = echo
         self._tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
         self._lock = threading.Lock()
@@ -64,7 +38,7 @@ class ProcessOutput:
         with self._lock:
             self._tail.append(line)
             if not self._closed:
-                self.log.write(line)
+                self.log.emit(logging.makeLogRecord({"msg": line}))
         if self.echo is not None:
             self.echo(line)
 
@@ -75,9 +49,7 @@ class ProcessOutput:
 
     def follow(self, stream: IO[bytes]) -> threading.Thread:
         """Read `stream` line by line on a daemon thread until it closes."""
-        thread = threading.Thread(
-            target=self._pump, args=(stream,), daemon=True, name=f"fleet-log-{self.log.path.stem}"
-        )
+        thread = threading.Thread(target=self._pump, args=(stream,), daemon=True, name=f"fleet-log-{self.path.stem}")
         thread.start()
         return thread
 

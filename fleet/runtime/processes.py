@@ -1,4 +1,5 @@
-"""Starting and signalling node processes: own session, and dead when their supervisor dies.
+"""Starting, finding and stopping processes: each node in its own session and dead when its
+supervisor dies; the processes that carry a marker in their environment.
 
 Each node runs in its own session (so its own process group): signals go to the whole group,
 children of a node included.  `PR_SET_PDEATHSIG` makes the kernel SIGKILL the child when the
@@ -8,6 +9,7 @@ thread that lives as long as the children do.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import logging
@@ -17,6 +19,8 @@ import subprocess
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO
+
+import psutil
 
 _PR_SET_PDEATHSIG = 1
 _log = logging.getLogger("fleet.processes")
@@ -68,19 +72,13 @@ def signal_group(pgid: int, signum: int) -> bool:
 def group_members(pgid: int) -> list[int]:
     """Pids of the live (non-zombie) processes of a process group."""
     members = []
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
+    for pid in psutil.pids():
         try:
-            with open(f"/proc/{entry}/stat", "rb") as handle:
-                stat = handle.read()
-        except OSError:
+            # getpgid first: one system call, where a status reads a file of every process.
+            if os.getpgid(pid) == pgid and psutil.Process(pid).status() != psutil.STATUS_ZOMBIE:
+                members.append(pid)
+        except (ProcessLookupError, psutil.NoSuchProcess):  # it exited since it was listed
             continue
-        # Fields after the command name (which may hold spaces and parentheses).
-        fields = stat[stat.rindex(b")") + 2 :].split()
-        state, group = fields[0], int(fields[2])
-        if group == pgid and state != b"Z":
-            members.append(int(entry))
     return members
 
 
@@ -132,3 +130,31 @@ class ServiceProcess:
         except subprocess.TimeoutExpired:
             signal_group(process.pid, signal.SIGKILL)
             process.wait()
+
+
+def processes_marked(value: str, variable: str) -> list[psutil.Process]:
+    """Live processes (other than this one) whose environment has variable=value: what a
+    supervisor started, found again even after they left its process tree."""
+    found = []
+    me = os.getpid()
+    for process in psutil.process_iter(["pid"]):
+        if process.pid == me:
+            continue
+        try:
+            if process.environ().get(variable) == value and process.status() != psutil.STATUS_ZOMBIE:
+                found.append(process)
+        except (psutil.NoSuchProcess, psutil.AccessDenied, psutil.ZombieProcess):
+            continue
+    return found
+
+
+def terminate(processes: list[psutil.Process], timeout: float = 5.0) -> None:
+    """SIGTERM, wait, then SIGKILL whatever is left."""
+    for process in processes:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            process.terminate()
+    _, alive = psutil.wait_procs(processes, timeout=timeout)
+    for process in alive:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            process.kill()
+    psutil.wait_procs(alive, timeout=timeout)

@@ -191,7 +191,7 @@ class LaunchSession:
         return self._find(node).output.tail(lines)
 
     def log_file(self, node: str) -> Path:
-        return self._find(node).output.log.path
+        return self._find(node).output.path
 
     def done(self) -> bool:
         """True when nothing runs and nothing will be respawned."""
@@ -246,7 +246,7 @@ class LaunchSession:
         return env
 
     def _prepare(self) -> list[ProcessSpec]:
-        with contextlib.suppress(OSError):  # read-only: fleet_nodes lookups will say what is missing
+        with contextlib.suppress(OSError):  # a read-only environment: fleet_nodes lookups will say what is missing
             ament.ensure_ament_prefix()
         ros2 = self._ros2()
         backend = self.requested_backend

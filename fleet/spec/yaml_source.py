@@ -52,6 +52,14 @@ class SourceMap:
             probe = probe[:-1]
 
 
+class YamlSyntaxError(SpecError):
+    """The text is not YAML; `problem` is the parser's own words (other readers word it their way)."""
+
+    def __init__(self, problem: str, location: Location):
+        super().__init__(f"YAML syntax error: {problem}", location)
+        self.problem = problem
+
+
 def load_yaml(text: str, file: str | Path) -> tuple[Any, SourceMap]:
     """Parse YAML text into plain data plus its SourceMap; syntax errors become SpecError."""
     source = SourceMap(str(file))
@@ -61,7 +69,7 @@ def load_yaml(text: str, file: str | Path) -> tuple[Any, SourceMap]:
         mark = error.problem_mark or error.context_mark
         problem = error.problem or error.context or "invalid YAML"
         location = Location(file, mark.line + 1, mark.column + 1) if mark else Location(file)
-        raise SpecError(f"YAML syntax error: {problem}", location) from None
+        raise YamlSyntaxError(problem, location) from None
     except yaml.YAMLError as error:
         raise SpecError(f"YAML error: {error}", Location(file)) from None
     if node is None:

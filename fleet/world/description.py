@@ -1,21 +1,44 @@
 """world.yaml -> frozen dataclasses, validated (pure: no pybullet, no ROS).
 
-Every problem is a WorldError (a FleetError) naming the file, line and column of the offending
-value, so `fleet world` can print one line and exit 2.  Line numbers come from composing the YAML
-into nodes first (yaml keeps the marks there) and converting the nodes ourselves.
+The dataclasses are the world's own types; pydantic validates world.yaml's data into them (the
+constraints are their fields' annotations), reading it through the one reader of positioned YAML
+(fleet.spec.yaml_source), so every problem is a WorldError naming the file, line and column of
+the offending value and `fleet world` can print one line and exit 2.  A number or a string with
+no value (`radius:`) means the same as no key: its default.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import re
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Annotated, Any
 
-import yaml
+from pydantic import (
+    AfterValidator,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Strict,
+    StrictBool,
+    StrictInt,
+    StrictStr,
+    Tag,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
-from fleet.errors import FleetError, Location
+from fleet.errors import FleetError, Location, SpecError
+from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 MODEL_TYPES = ("light", "husky", "racecar")
@@ -28,21 +51,116 @@ class WorldError(FleetError):
     """world.yaml is unreadable or invalid."""
 
 
-@dataclass(frozen=True)
-class Pose2D:
-    x: float = 0.0
-    y: float = 0.0
-    yaw: float = 0.0
+# -- field types: what each value of world.yaml may be ---------------------------------------------
+# A failed check of ours raises a PydanticCustomError whose type tells _world_error how to word it:
+# "field": "<what>: '<key>' <message>"; "value": "<what>: <message>"; "check", a rule across
+# values (context `at`: the path, below the checked value, that it points at): "<what>: <message>",
+# or the message alone for the world's own rules.
+
+
+def _field_problem(message: str) -> PydanticCustomError:
+    return PydanticCustomError("field", message)
+
+
+def _value_problem(message: str) -> PydanticCustomError:
+    return PydanticCustomError("value", message)
+
+
+def _check_problem(message: str, at: tuple = ()) -> PydanticCustomError:
+    return PydanticCustomError("check", message, {"at": at})
+
+
+def _valid_name(value: str) -> str:
+    if not NAME_RE.match(value):
+        raise _value_problem(
+            f"'{value}' is not a valid name (letters, digits and underscores, not starting with a digit)"
+        )
+    return value
+
+
+def _one_of(kinds: tuple[str, ...], what: str) -> AfterValidator:
+    def check(value: str) -> str:
+        if value not in kinds:
+            raise _value_problem(f"unknown {what} '{value}' (known: {', '.join(kinds)})")
+        return value
+
+    return AfterValidator(check)
+
+
+def _within(low: int, high: int) -> AfterValidator:
+    def check(value: int) -> int:
+        if not low <= value <= high:
+            raise _field_problem(f"must be in {low}..{high}, got {value}")
+        return value
+
+    return AfterValidator(check)
+
+
+def _list_of(*counts: int) -> BeforeValidator:
+    def check(value: Any) -> Any:
+        if not isinstance(value, list) or len(value) not in counts:
+            raise _field_problem(f"must be a list of {counts[-1]} numbers")
+        return value
+
+    return BeforeValidator(check)
+
+
+Number = Annotated[float, Strict(), Field(allow_inf_nan=False)]  # an int or a float, not a bool
+Name = Annotated[StrictStr, AfterValidator(_valid_name)]
+ObstacleType = Annotated[StrictStr, _one_of(OBSTACLE_TYPES, "type")]
+Point = Annotated[tuple[Number, Number], _list_of(2)]
+
+
+class _FromYaml:
+    """What the types read from world.yaml share: unknown keys are errors, and a number or a
+    string written with no value (`radius:`) is as if not written (its default, or missing)."""
+
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _null_means_default(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        defaulted = _number_or_string_fields(cls)  # type: ignore[arg-type]  # classes hash by identity
+        return {key: value for key, value in data.items() if value is not None or key not in defaulted}
+
+
+@functools.cache
+def _number_or_string_fields(kind: type) -> frozenset[str]:
+    hints = typing.get_type_hints(kind, include_extras=True)
+    return frozenset(
+        name for name, hint in hints.items() if typing.get_origin(hint) is Annotated and hint.__origin__ in (float, str)
+    )
+
+
+# -- the world's types -----------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
-class ModelSpec:
-    type: str = "light"
-    radius: float = 0.2  # light: footprint circle (other models ignore it)
-    length: float = 0.99  # URDF models: footprint rectangle (along x)
-    width: float = 0.68
-    max_linear_speed: float = 1.0
-    max_angular_speed: float = 2.5
+class Pose2D(_FromYaml):
+    x: Number = 0.0
+    y: Number = 0.0
+    yaw: Number = 0.0
+
+
+@dataclass(frozen=True)
+class ModelSpec(_FromYaml):
+    type: Annotated[StrictStr, _one_of(MODEL_TYPES, "model type")] = "light"
+    radius: Annotated[Number, Field(gt=0, le=5.0)] = 0.2  # light: footprint circle (other models ignore it)
+    length: Annotated[Number, Field(gt=0, le=10.0)] = 0.99  # URDF models: footprint rectangle (along x)
+    width: Annotated[Number, Field(gt=0, le=10.0)] = 0.68
+    max_linear_speed: Annotated[Number, Field(ge=0.0, le=20.0)] = 1.0
+    max_angular_speed: Annotated[Number, Field(ge=0.0, le=50.0)] = 2.5
+
+    @model_validator(mode="before")
+    @classmethod
+    def _footprint_of_type(cls, data: Any) -> Any:
+        """In world.yaml a URDF model's length and width default to its URDF's footprint."""
+        if isinstance(data, dict) and isinstance(data.get("type"), str) and data["type"] in URDF_FOOTPRINTS:
+            footprint = dict(zip(("length", "width"), URDF_FOOTPRINTS[data["type"]], strict=True))
+            data = {**data, **{key: value for key, value in footprint.items() if data.get(key) is None}}
+        return data
 
     @property
     def is_round(self) -> bool:
@@ -56,13 +174,22 @@ class ModelSpec:
 
 
 @dataclass(frozen=True)
-class LidarSpec:
-    beams: int = 360
-    rate: float = 10.0
-    range_min: float = 0.12
-    range_max: float = 8.0
-    angle_min: float = -math.pi
-    angle_max: float = math.pi  # exclusive for a full circle (the last beam is angle_max - step)
+class LidarSpec(_FromYaml):
+    beams: Annotated[StrictInt, _within(1, 10000)] = 360
+    rate: Annotated[Number, Field(gt=0, le=1000.0)] = 10.0
+    range_min: Annotated[Number, Field(ge=0.0)] = 0.12
+    range_max: Annotated[Number, Field(gt=0, le=1000.0)] = 8.0
+    angle_min: Annotated[Number, Field(ge=-2 * math.pi)] = -math.pi
+    # angle_max is exclusive for a full circle (the last beam is angle_max - step).
+    angle_max: Annotated[Number, Field(le=2 * math.pi)] = math.pi
+
+    @model_validator(mode="after")
+    def _consistent(self) -> LidarSpec:
+        if self.range_min >= self.range_max:
+            raise _check_problem("range_min must be below range_max", ("range_min",))
+        if self.angle_min >= self.angle_max or self.angle_max - self.angle_min > 2 * math.pi + 1e-9:
+            raise _check_problem("need angle_min < angle_max spanning at most 2*pi", ("angle_min",))
+        return self
 
     @property
     def full_circle(self) -> bool:
@@ -75,16 +202,31 @@ class LidarSpec:
         return span / self.beams if self.full_circle else span / max(self.beams - 1, 1)
 
 
+def _namespace(value: str) -> str:
+    namespace = value if value.startswith("/") else "/" + value
+    namespace = namespace.rstrip("/") or "/"
+    if namespace != "/" and not all(NAME_RE.match(part) for part in namespace[1:].split("/")):
+        raise _value_problem(f"'{namespace}' is not a valid ROS namespace")
+    return namespace
+
+
 @dataclass(frozen=True)
-class RobotSpec:
-    name: str
-    namespace: str
+class RobotSpec(_FromYaml):
+    name: Name
+    namespace: Annotated[StrictStr, AfterValidator(_namespace)]  # world.yaml: /<name> unless given
     model: ModelSpec = field(default_factory=ModelSpec)
     pose: Pose2D = field(default_factory=Pose2D)
     lidar: LidarSpec = field(default_factory=LidarSpec)
-    odom_rate: float = 50.0
-    cmd_timeout: float = 0.5
-    ground_truth: bool = False
+    odom_rate: Annotated[Number, Field(gt=0, le=1000.0)] = 50.0
+    cmd_timeout: Annotated[Number, Field(gt=0, le=3600.0)] = 0.5
+    ground_truth: StrictBool = False
+
+    @model_validator(mode="before")
+    @classmethod
+    def _namespace_of_name(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("namespace") is None and isinstance(data.get("name"), str):
+            data = {**data, "namespace": f"/{data['name']}"}
+        return data
 
     def same_except_pose(self, other: RobotSpec) -> bool:
         """True when a reload changed nothing but the initial pose (which only matters at spawn)."""
@@ -105,300 +247,139 @@ class ObstacleSpec:
 
 @dataclass(frozen=True)
 class WorldSpec:
-    fleet: str = "fleet"
-    physics_rate: float = 240.0
-    real_time: bool = True
-    clock_rate: float = 100.0
-    obstacles: tuple[ObstacleSpec, ...] = ()
-    robots: tuple[RobotSpec, ...] = ()
+    fleet: str
+    physics_rate: float
+    real_time: bool
+    clock_rate: float
+    obstacles: tuple[ObstacleSpec, ...]
+    robots: tuple[RobotSpec, ...]
     source: str | None = None
 
 
-# -- YAML nodes with their positions -------------------------------------------------------------
+# -- world.yaml's forms of an obstacle and of the world ----------------------------------------------
 
 
-class _Value:
-    """A converted YAML node keeping the mark of where it was written."""
+@dataclass(frozen=True, kw_only=True)
+class _Box(_FromYaml):
+    """A box (or wall) as world.yaml writes it: `size` is [x, y, z], or [x, y] and `height`."""
 
-    __slots__ = ("column", "line", "value")
+    name: Name
+    type: ObstacleType
+    position: Point
+    yaw: Number = 0.0
+    size: Annotated[tuple[Number, ...], _list_of(2, 3)]
+    height: Annotated[Number, Field(gt=0)] = 1.0
+    radius: Any = None  # a cylinder's, ignored
 
-    def __init__(self, value: Any, mark) -> None:
-        self.value = value
-        self.line = mark.line + 1 if mark is not None else None
-        self.column = mark.column + 1 if mark is not None else None
+    @model_validator(mode="before")
+    @classmethod
+    def _height_in_size(cls, data: Any) -> Any:
+        """With three sizes the third is the height, and a `height` key is ignored."""
+        if isinstance(data, dict) and isinstance(data.get("size"), list) and len(data["size"]) == 3:
+            return {key: value for key, value in data.items() if key != "height"}
+        return data
 
+    @model_validator(mode="after")
+    def _positive(self) -> _Box:
+        if min(self.size) <= 0:
+            raise _check_problem("size values must be > 0", ("size",))
+        return self
 
-def _convert(node: yaml.Node) -> _Value:
-    if isinstance(node, yaml.MappingNode):
-        out: dict[str, _Value] = {}
-        for key_node, value_node in node.value:
-            out[str(_SCALARS.construct_object(key_node, deep=True))] = _convert(value_node)
-        return _Value(out, node.start_mark)
-    if isinstance(node, yaml.SequenceNode):
-        return _Value([_convert(item) for item in node.value], node.start_mark)
-    # Scalars: the composer already resolved the tag (int, float, bool, null, str).
-    return _Value(_SCALARS.construct_object(node, deep=True), node.start_mark)
-
-
-_SCALARS = yaml.SafeLoader("")
-
-
-class _Reader:
-    """Typed access to a converted mapping, raising WorldError with the location."""
-
-    def __init__(self, source: str, node: _Value, what: str) -> None:
-        self.source = source
-        self.node = node
-        self.what = what
-        if not isinstance(node.value, dict):
-            self.fail(node, f"{what} must be a mapping")
-        self.data: dict[str, _Value] = node.value
-
-    def fail(self, node: _Value | None, message: str) -> NoReturn:
-        node = node or self.node
-        raise WorldError(message, Location(self.source, node.line, node.column))
-
-    def check_keys(self, allowed: set[str]) -> None:
-        for key, value in self.data.items():
-            if key not in allowed:
-                self.fail(value, f"unknown key '{key}' in {self.what} (allowed: {', '.join(sorted(allowed))})")
-
-    def raw(self, key: str) -> _Value | None:
-        return self.data.get(key)
-
-    def number(
-        self,
-        key: str,
-        default: float | None = None,
-        *,
-        minimum: float | None = None,
-        positive: bool = False,
-        maximum: float | None = None,
-    ) -> float:
-        node = self.data.get(key)
-        if node is None or node.value is None:
-            if default is None:
-                self.fail(None, f"{self.what}: missing '{key}'")
-            return float(default)
-        value = node.value
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            self.fail(node, f"{self.what}: '{key}' must be a number, got {value!r}")
-        if positive and value <= 0:
-            self.fail(node, f"{self.what}: '{key}' must be > 0, got {value}")
-        if minimum is not None and value < minimum:
-            self.fail(node, f"{self.what}: '{key}' must be >= {minimum}, got {value}")
-        if maximum is not None and value > maximum:
-            self.fail(node, f"{self.what}: '{key}' must be <= {maximum}, got {value}")
-        return float(value)
-
-    def integer(self, key: str, default: int, *, minimum: int, maximum: int) -> int:
-        node = self.data.get(key)
-        if node is None:
-            return default
-        if isinstance(node.value, bool) or not isinstance(node.value, int):
-            self.fail(node, f"{self.what}: '{key}' must be an integer, got {node.value!r}")
-        if not minimum <= node.value <= maximum:
-            self.fail(node, f"{self.what}: '{key}' must be in {minimum}..{maximum}, got {node.value}")
-        return node.value
-
-    def boolean(self, key: str, default: bool) -> bool:
-        node = self.data.get(key)
-        if node is None:
-            return default
-        if not isinstance(node.value, bool):
-            self.fail(node, f"{self.what}: '{key}' must be true or false, got {node.value!r}")
-        return node.value
-
-    def string(self, key: str, default: str | None = None) -> str:
-        node = self.data.get(key)
-        if node is None or node.value is None:
-            if default is None:
-                self.fail(None, f"{self.what}: missing '{key}'")
-            return default
-        if not isinstance(node.value, str):
-            self.fail(node, f"{self.what}: '{key}' must be a string, got {node.value!r}")
-        return node.value
-
-    def name(self, key: str = "name") -> str:
-        value = self.string(key)
-        if not NAME_RE.match(value):
-            self.fail(
-                self.data[key],
-                f"{self.what}: '{value}' is not a valid name "
-                "(letters, digits and underscores, not starting with a digit)",
-            )
-        return value
-
-    def sub(self, key: str) -> _Reader:
-        node = self.data.get(key)
-        if node is None:
-            return _Reader(self.source, _Value({}, None), f"{self.what}.{key}")
-        return _Reader(self.source, node, f"{self.what}.{key}")
-
-    def numbers(self, key: str, count: int, default: tuple[float, ...] | None = None) -> tuple[float, ...]:
-        node = self.data.get(key)
-        if node is None:
-            if default is None:
-                self.fail(None, f"{self.what}: missing '{key}'")
-            return default
-        items = node.value
-        if not isinstance(items, list) or len(items) != count:
-            self.fail(node, f"{self.what}: '{key}' must be a list of {count} numbers")
-        out = []
-        for item in items:
-            if (
-                isinstance(item.value, bool)
-                or not isinstance(item.value, (int, float))
-                or not math.isfinite(item.value)
-            ):
-                self.fail(item, f"{self.what}: '{key}' must contain numbers, got {item.value!r}")
-            out.append(float(item.value))
-        return tuple(out)
+    def spec(self) -> ObstacleSpec:
+        length, width, *rest = self.size  # 2 or 3 values (validated)
+        height = rest[0] if rest else self.height
+        return ObstacleSpec(self.name, "box", *self.position, self.yaw, size=(length, width, height), height=height)
 
 
-# -- the schema ----------------------------------------------------------------------------------
+@dataclass(frozen=True, kw_only=True)
+class _Cylinder(_FromYaml):
+    name: Name
+    type: ObstacleType
+    position: Point
+    yaw: Number = 0.0
+    radius: Annotated[Number, Field(gt=0)]
+    height: Annotated[Number, Field(gt=0)] = 1.0
+    size: Any = None  # a box's, ignored
+
+    def spec(self) -> ObstacleSpec:
+        return ObstacleSpec(self.name, "cylinder", *self.position, self.yaw, radius=self.radius, height=self.height)
 
 
-def _model(reader: _Reader) -> ModelSpec:
-    reader.check_keys({"type", "radius", "length", "width", "max_linear_speed", "max_angular_speed"})
-    kind = reader.string("type", "light")
-    if kind not in MODEL_TYPES:
-        reader.fail(reader.raw("type"), f"{reader.what}: unknown model type '{kind}' (known: {', '.join(MODEL_TYPES)})")
-    length, width = URDF_FOOTPRINTS.get(kind, (0.99, 0.68))
-    return ModelSpec(
-        type=kind,
-        radius=reader.number("radius", 0.2, positive=True, maximum=5.0),
-        length=reader.number("length", length, positive=True, maximum=10.0),
-        width=reader.number("width", width, positive=True, maximum=10.0),
-        max_linear_speed=reader.number("max_linear_speed", 1.0, minimum=0.0, maximum=20.0),
-        max_angular_speed=reader.number("max_angular_speed", 2.5, minimum=0.0, maximum=50.0),
-    )
+def _shape(data: Any) -> str:
+    return "cylinder" if isinstance(data, dict) and data.get("type") == "cylinder" else "box"
 
 
-def _lidar(reader: _Reader) -> LidarSpec:
-    reader.check_keys({"beams", "rate", "range_min", "range_max", "angle_min", "angle_max"})
-    lidar = LidarSpec(
-        beams=reader.integer("beams", 360, minimum=1, maximum=10000),
-        rate=reader.number("rate", 10.0, positive=True, maximum=1000.0),
-        range_min=reader.number("range_min", 0.12, minimum=0.0),
-        range_max=reader.number("range_max", 8.0, positive=True, maximum=1000.0),
-        angle_min=reader.number("angle_min", -math.pi, minimum=-2 * math.pi),
-        angle_max=reader.number("angle_max", math.pi, maximum=2 * math.pi),
-    )
-    if lidar.range_min >= lidar.range_max:
-        reader.fail(reader.raw("range_min"), f"{reader.what}: range_min must be below range_max")
-    if lidar.angle_min >= lidar.angle_max or lidar.angle_max - lidar.angle_min > 2 * math.pi + 1e-9:
-        reader.fail(reader.raw("angle_min"), f"{reader.what}: need angle_min < angle_max spanning at most 2*pi")
-    return lidar
+_Obstacle = Annotated[Annotated[_Box, Tag("box")] | Annotated[_Cylinder, Tag("cylinder")], Discriminator(_shape)]
 
 
-def _pose(reader: _Reader) -> Pose2D:
-    reader.check_keys({"x", "y", "yaw"})
-    return Pose2D(reader.number("x", 0.0), reader.number("y", 0.0), reader.number("yaw", 0.0))
+@dataclass(frozen=True)
+class _WorldFile(_FromYaml):
+    obstacles: tuple[_Obstacle, ...] = ()
+    robots: tuple[RobotSpec, ...] = ()
+    fleet: StrictStr = "fleet"
+    physics_rate: Annotated[Number, Field(gt=0, le=10000.0)] = 240.0
+    real_time: StrictBool = True
+    clock_rate: Annotated[Number, Field(gt=0, le=10000.0)] = 100.0
 
+    @model_validator(mode="before")
+    @classmethod
+    def _no_items_if_null(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            return {
+                key: value for key, value in data.items() if key not in ("obstacles", "robots") or value is not None
+            }
+        return data
 
-def _robot(reader: _Reader) -> RobotSpec:
-    reader.check_keys({"name", "namespace", "model", "pose", "lidar", "odom_rate", "cmd_timeout", "ground_truth"})
-    name = reader.name()
-    reader.what = f"robot '{name}'"
-    namespace = reader.string("namespace", f"/{name}")
-    if not namespace.startswith("/"):
-        namespace = "/" + namespace
-    namespace = namespace.rstrip("/") or "/"
-    if namespace != "/" and not all(NAME_RE.match(part) for part in namespace[1:].split("/")):
-        reader.fail(reader.raw("namespace"), f"{reader.what}: '{namespace}' is not a valid ROS namespace")
-    return RobotSpec(
-        name=name,
-        namespace=namespace,
-        model=_model(reader.sub("model")),
-        pose=_pose(reader.sub("pose")),
-        lidar=_lidar(reader.sub("lidar")),
-        odom_rate=reader.number("odom_rate", 50.0, positive=True, maximum=1000.0),
-        cmd_timeout=reader.number("cmd_timeout", 0.5, positive=True, maximum=3600.0),
-        ground_truth=reader.boolean("ground_truth", False),
-    )
+    @field_validator("obstacles", "robots")
+    @classmethod
+    def _unique_names(cls, items: tuple, info: ValidationInfo) -> tuple:
+        kind = (info.field_name or "items")[:-1]
+        seen: set[str] = set()
+        for index, item in enumerate(items):
+            if item.name in seen:
+                raise _check_problem(f"duplicate {kind} name '{item.name}'", (index,))
+            seen.add(item.name)
+        return items
 
+    @field_validator("robots")
+    @classmethod
+    def _unique_namespaces(cls, robots: tuple[RobotSpec, ...]) -> tuple[RobotSpec, ...]:
+        namespaces: set[str] = set()
+        for index, robot in enumerate(robots):
+            if robot.namespace in namespaces:
+                raise _check_problem(f"robot '{robot.name}': namespace '{robot.namespace}' is used twice", (index,))
+            namespaces.add(robot.namespace)
+        return robots
 
-def _obstacle(reader: _Reader) -> ObstacleSpec:
-    reader.check_keys({"name", "type", "position", "yaw", "size", "radius", "height"})
-    name = reader.name()
-    reader.what = f"obstacle '{name}'"
-    kind = reader.string("type")
-    if kind not in OBSTACLE_TYPES:
-        reader.fail(reader.raw("type"), f"{reader.what}: unknown type '{kind}' (known: {', '.join(OBSTACLE_TYPES)})")
-    x, y = reader.numbers("position", 2)
-    yaw = reader.number("yaw", 0.0)
-    if kind == "cylinder":
-        return ObstacleSpec(
-            name,
-            "cylinder",
-            x,
-            y,
-            yaw,
-            radius=reader.number("radius", positive=True),
-            height=reader.number("height", 1.0, positive=True),
+    def spec(self, source: str) -> WorldSpec:
+        return WorldSpec(
+            fleet=self.fleet,
+            physics_rate=self.physics_rate,
+            real_time=self.real_time,
+            clock_rate=self.clock_rate,
+            obstacles=tuple(entry.spec() for entry in self.obstacles),
+            robots=self.robots,
+            source=source,
         )
-    node = reader.raw("size")
-    if node is not None and isinstance(node.value, list) and len(node.value) == 2:
-        size_x, size_y = reader.numbers("size", 2)
-        size = (size_x, size_y, reader.number("height", 1.0, positive=True))
-    else:
-        size_x, size_y, size_z = reader.numbers("size", 3)
-        size = (size_x, size_y, size_z)
-    if min(size) <= 0:
-        reader.fail(reader.raw("size"), f"{reader.what}: size values must be > 0")
-    return ObstacleSpec(name, "box", x, y, yaw, size=size, height=size[2])
+
+
+# -- reading world.yaml ----------------------------------------------------------------------------
 
 
 def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
     try:
-        root_node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        problem = getattr(error, "problem", None) or str(error)
-        raise WorldError(
-            f"invalid YAML: {problem}",
-            Location(source, mark.line + 1 if mark else None, mark.column + 1 if mark else None),
-        ) from None
-    if root_node is None:
+        data, positions = load_yaml(text, source)
+    except YamlSyntaxError as error:
+        raise WorldError(f"invalid YAML: {error.problem}", error.location) from None
+    except SpecError as error:  # duplicate keys and the like
+        raise WorldError(error.message, error.location) from None
+    if data is None:
         raise WorldError("world description is empty", Location(source))
-    root = _Reader(source, _convert(root_node), "world")
-    root.check_keys({"fleet", "physics_rate", "real_time", "clock_rate", "obstacles", "robots"})
-
-    def items(key: str) -> list[_Value]:
-        node = root.raw(key)
-        if node is None or node.value is None:
-            return []
-        if not isinstance(node.value, list):
-            root.fail(node, f"'{key}' must be a list")
-        return node.value
-
-    obstacles = [_obstacle(_Reader(source, item, "obstacle")) for item in items("obstacles")]
-    robots = [_robot(_Reader(source, item, "robot")) for item in items("robots")]
-    for kind, names, nodes in (
-        ("obstacle", [obstacle.name for obstacle in obstacles], items("obstacles")),
-        ("robot", [robot.name for robot in robots], items("robots")),
-    ):
-        seen: set[str] = set()
-        for name, node in zip(names, nodes, strict=False):
-            if name in seen:
-                root.fail(node, f"duplicate {kind} name '{name}'")
-            seen.add(name)
-    namespaces: set[str] = set()
-    for spec, node in zip(robots, items("robots"), strict=False):
-        if spec.namespace in namespaces:
-            root.fail(node, f"robot '{spec.name}': namespace '{spec.namespace}' is used twice")
-        namespaces.add(spec.namespace)
-    fleet = root.string("fleet", "fleet")
-    return WorldSpec(
-        fleet=fleet,
-        physics_rate=root.number("physics_rate", 240.0, positive=True, maximum=10000.0),
-        real_time=root.boolean("real_time", True),
-        clock_rate=root.number("clock_rate", 100.0, positive=True, maximum=10000.0),
-        obstacles=tuple(obstacles),
-        robots=tuple(robots),
-        source=source,
-    )
+    try:
+        world = _world_file().validate_python(data)
+    except ValidationError as error:
+        raise _world_error(error, data, positions) from None
+    return world.spec(source)
 
 
 def load_world(path: str | Path) -> WorldSpec:
@@ -408,3 +389,95 @@ def load_world(path: str | Path) -> WorldSpec:
     except OSError as error:
         raise WorldError(f"cannot read world description: {error.strerror}", Location(path)) from None
     return parse_world(text, str(path))
+
+
+@functools.cache
+def _world_file() -> TypeAdapter:
+    return TypeAdapter(_WorldFile)
+
+
+# -- pydantic's errors in world.yaml's words ---------------------------------------------------------
+
+_UNKNOWN = ("extra_forbidden", "unexpected_keyword_argument", "invalid_key")  # the last: `1: x`
+_NOT_A_MAPPING = ("dataclass_type", "dataclass_args_type", "model_attributes_type", "dict_type")
+_WORDING = {
+    "float_type": "must be a number, got {input!r}",
+    "float_parsing": "must be a number, got {input!r}",
+    "finite_number": "must be a number, got {input!r}",
+    "greater_than": "must be > {gt:g}, got {input}",
+    "greater_than_equal": "must be >= {ge}, got {input}",
+    "less_than_equal": "must be <= {le}, got {input}",
+    "int_type": "must be an integer, got {input!r}",
+    "bool_type": "must be true or false, got {input!r}",
+    "string_type": "must be a string, got {input!r}",
+}
+
+
+def _world_error(error: ValidationError, data: Any, positions: SourceMap) -> WorldError:
+    """The problem the hand-written order would meet first, as one located line."""
+    problems: list[dict[str, Any]] = [{**problem, "loc": _plain(problem["loc"])} for problem in error.errors()]
+    first = problems[0]
+    # Unknown keys of a mapping are reported before its values' problems.
+    unknown = [p for p in problems if p["type"] in _UNKNOWN and first["loc"][: len(p["loc"]) - 1] == p["loc"][:-1]]
+    problem = min(unknown, key=lambda p: len(p["loc"])) if unknown else first
+    loc, kind, message = problem["loc"], problem["type"], problem["msg"]
+    context = {**problem.get("ctx", {}), "input": problem["input"]}
+    parent, key = loc[:-1], loc[-1] if loc else None
+    at = loc
+    if kind in _UNKNOWN:
+        allowed = ", ".join(sorted(_keys_at(parent)))
+        # An item's keys are checked before its name: an unknown one names the kind only.
+        text = f"unknown key '{key}' in {_what(data, parent, named=len(parent) != 2)} (allowed: {allowed})"
+    elif kind == "missing":
+        text, at = f"{_what(data, parent)}: missing '{key}'", parent
+    elif kind in _NOT_A_MAPPING:
+        text = f"{_what(data, loc)} must be a mapping"
+    elif kind == "tuple_type" and len(loc) == 1:
+        text = f"'{key}' must be a list"
+    elif kind == "check":
+        at, what = (*loc, *problem["ctx"]["at"]), _what(data, loc)
+        text = message if what == "world" else f"{what}: {message}"
+    elif kind == "value":
+        text = f"{_what(data, parent)}: {message}"
+    elif isinstance(key, int):  # an item of a list of numbers
+        text = f"{_what(data, loc[:-2])}: '{loc[-2]}' must contain numbers, got {problem['input']!r}"
+    else:
+        wording = message if kind == "field" else _WORDING.get(kind, message).format(**context)
+        text = f"{_what(data, parent)}: '{key}' {wording}"
+    return WorldError(text, positions.locate(at))
+
+
+def _plain(loc: tuple) -> tuple:
+    """pydantic's location without the obstacle shape it chose (`obstacles.0.box.size`)."""
+    return tuple(part for index, part in enumerate(loc) if not (index == 2 and loc[0] == "obstacles"))
+
+
+def _what(data: Any, loc: tuple, named: bool = True) -> str:
+    """How messages name the mapping at `loc`: world, robot 'r1', robot 'r1'.pose, obstacle."""
+    if len(loc) < 2:
+        return "world"
+    kind = "obstacle" if loc[0] == "obstacles" else "robot"
+    item = data[loc[0]][loc[1]]
+    name = item.get("name") if isinstance(item, dict) else None
+    what = f"{kind} '{name}'" if named and isinstance(name, str) and NAME_RE.match(name) else kind
+    return ".".join([what, *map(str, loc[2:])])
+
+
+def _keys_at(loc: tuple) -> list[str]:
+    """The keys world.yaml allows in the mapping at `loc`."""
+    kind: Any = _WorldFile
+    for part in loc:
+        if isinstance(part, str):
+            kind = _dataclass_in(typing.get_type_hints(kind, include_extras=True)[part])
+    return [item.name for item in dataclasses.fields(kind)]
+
+
+def _dataclass_in(hint: Any) -> Any:
+    """The first dataclass inside a type hint (through Annotated, tuple and union)."""
+    if dataclasses.is_dataclass(hint):
+        return hint
+    for argument in typing.get_args(hint):
+        found = _dataclass_in(argument)
+        if found is not None:
+            return found
+    return None

@@ -7,6 +7,8 @@ import os
 import textwrap
 from pathlib import Path
 
+import psutil
+
 INDEX = Path("share") / "ament_index" / "resource_index" / "packages"
 
 
@@ -36,8 +38,6 @@ class FakePrefix:
 def pid_alive(pid: int) -> bool:
     """True if `pid` is a live (non-zombie) process."""
     try:
-        with open(f"/proc/{pid}/stat", "rb") as handle:
-            stat = handle.read()
-    except OSError:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
         return False
-    return stat[stat.rindex(b")") + 2 :].split()[0] != b"Z"

@@ -74,3 +74,42 @@ def test_errors_name_file_line_and_problem(text, where, words):
     message = str(caught.value)
     assert message.startswith("w.yaml") and where in message and words in message, message
     assert "\n" not in message
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("robots:\n- name: r1\n  name: r2\n", "w.yaml:3:3: duplicate key 'name'"),
+        ("robots:\n- {name: r1, 1: 2}\n", "w.yaml:2:17: unknown key '1' in robot (allowed: cmd_timeout, ground_truth,"),
+        ("robots:\n- name: r1\n  model: {colour: red}\n", "w.yaml:3:19: unknown key 'colour' in robot 'r1'.model"),
+        (
+            "robots:\n- name: r1\n  lidar: {beams: 0}\n",
+            "w.yaml:3:18: robot 'r1'.lidar: 'beams' must be in 1..10000, got 0",
+        ),
+        (
+            "robots:\n- name: r1\n  ground_truth:\n",
+            "w.yaml:3:16: robot 'r1': 'ground_truth' must be true or false, got None",
+        ),
+        (
+            "obstacles:\n- {name: b, type: box, position: [0, 0], size: [1, 0]}\n",
+            "w.yaml:2:48: obstacle 'b': size values",
+        ),
+        ("obstacles: [{name: b, type: tank, position: [0, 0]}]\n", "w.yaml:1:29: obstacle 'b': unknown type 'tank'"),
+    ],
+)
+def test_more_errors_keep_their_words_and_places(text, message):
+    with pytest.raises(WorldError) as caught:
+        parse_world(text, "w.yaml")
+    assert str(caught.value).startswith(message), str(caught.value)
+
+
+def test_a_number_without_value_is_its_default_and_a_full_size_holds_the_height():
+    world = parse_world(
+        "robots:\n- {name: r1, odom_rate: , model: {type: racecar}}\n"
+        "obstacles:\n- {name: b, type: box, position: [0, 0], size: [1, 1, 2], height: -1}\n"
+    )
+    assert world.robots[0].odom_rate == 50.0 and (world.robots[0].model.length, world.robots[0].model.width) == (
+        0.55,
+        0.3,
+    )
+    assert world.obstacles[0].size == (1.0, 1.0, 2.0) and world.obstacles[0].height == 2.0
