@@ -128,7 +128,6 @@ def test_router_restart_agents_reconnect(fleet):
     fleet.wait_sim(1.0)  # robots keep running without the control plane
     assert all(psutil.pid_exists(pid) for pids in before.values() for pid in pids)
 
-    restarted = time.monotonic()
     fleet.start_router()
 
     def back():
@@ -136,9 +135,9 @@ def test_router_restart_agents_reconnect(fleet):
         online = {agent.name for agent in view.agents if agent.online}
         return online == {"hostA", "hostB"} and view.all_running and len(view.robots) == 3 and view
 
+    # How fast agents reconnect is measured in tests/control/test_control_router_restart.py (from
+    # the moment the router listens, not from its process start, which a loaded machine slows).
     view = fleet.wait_for(back, timeout=15, what="both agents to answer status through the new router")
-    took = time.monotonic() - restarted
-    assert took < 5.0, f"status worked again only {took:.1f} s after the router restart"
     assert node_pids(view) == before
     fleet.wait_desired_state(timeout=10)
     fleet.assert_no_leaks()
