@@ -67,10 +67,18 @@ def test_two_robots_run_namespaced_with_their_own_parameters(rendered, ros_env, 
     )
     with robot1, robot2:
         probe.wait_for_nodes(NODES, timeout=60)
-        topics = probe.topics()
-        for robot in ("robot1", "robot2"):
-            for topic in ("cmd_vel", "cmd_vel_nav", "odom", "scan", "battery", "diagnostics"):
-                assert f"/{robot}/{topic}" in topics, sorted(topics)
+        # Nodes are discovered before all their endpoints are (more so on a loaded machine).
+        wanted = {
+            f"/{robot}/{topic}"
+            for robot in ("robot1", "robot2")
+            for topic in ("cmd_vel", "cmd_vel_nav", "odom", "scan", "battery", "diagnostics")
+        }
+
+        def all_topics():
+            seen = probe.topics()
+            return seen if wanted <= set(seen) else None
+
+        topics = probe.wait_until(all_topics, 30, f"the topics {sorted(wanted)}")
         assert "/cmd_vel" not in topics and "/odom" not in topics
 
         # Each node holds its own robot's effective parameters (fleet defaults 0.4, robot2's override 0.8).
