@@ -11,7 +11,7 @@ import sys
 
 import typer
 
-from fleet.cli import certs_cmd, control_cmd, render_cmd, run_cmd, world_cmd
+from fleet.cli import certs_cmd, control_cmd, dashboard_cmd, render_cmd, run_cmd, world_cmd
 from fleet.errors import FleetError
 
 app = typer.Typer(
@@ -32,7 +32,7 @@ def _fleet() -> None:
     """
 
 
-for _module in (render_cmd, run_cmd, control_cmd, world_cmd, certs_cmd):
+for _module in (render_cmd, run_cmd, control_cmd, world_cmd, certs_cmd, dashboard_cmd):
     _module.register(app)
 
 

@@ -3,11 +3,12 @@
 The CLI is short-lived, so someone must remember which agents were seen when, and what was
 deployed where (to show the robots of an offline agent).  The router is always there, so it
 keeps that registry: it watches the agents' liveliness tokens, stores the plan record each
-deploy puts on `fleet/<fleet>/plan`, and answers `fleet/<fleet>/status/registry` as part of the
-one wildcard status query.  It also stores each agent's latest desired state (the apply a deploy
-or `fleet down` puts on `fleet/<fleet>/desired/<agent>`) and hands it to the agent when asked, so
-an agent that was away when the deploy ran completes it when it comes back.  With --state-dir
-the registry survives router restarts.
+deploy puts on `fleet/<fleet>/plan` (the last HISTORY of them: the fleet's generation history),
+and answers `fleet/<fleet>/status/registry` as part of the one wildcard status query.  It also
+stores each agent's latest desired state (the apply a deploy or `fleet down` puts on
+`fleet/<fleet>/desired/<agent>`) and hands it to the agent when asked, so an agent that was away
+when the deploy ran completes it when it comes back.  With --state-dir the registry survives
+router restarts.
 """
 
 from __future__ import annotations
@@ -23,12 +24,15 @@ from fleet.files import write_atomic
 
 log = logging.getLogger("fleet.router")
 
+HISTORY = 20  # plan records kept per fleet, newest last
+
 
 class Registry:
     def __init__(self, state_file: Path | None = None):
         self.state_file = state_file
         self._lock = threading.Lock()
         self._plans: dict[str, p.PlanRecord] = {}
+        self._history: dict[str, list[p.PlanRecord]] = {}  # fleet -> its last HISTORY plans, oldest first
         self._agents: dict[str, dict[str, p.AgentSeen]] = {}  # fleet -> agent -> seen
         self._desired: dict[str, dict[str, p.ApplyRequest]] = {}  # fleet -> agent -> latest apply
         self._load()
@@ -39,6 +43,9 @@ class Registry:
         try:
             data = json.loads(self.state_file.read_text())
             self._plans = {f: p.PlanRecord.model_validate(v) for f, v in data.get("plans", {}).items()}
+            self._history = {
+                f: [p.PlanRecord.model_validate(plan) for plan in plans] for f, plans in data.get("history", {}).items()
+            }
             self._desired = {
                 f: {a: p.ApplyRequest.model_validate(r) for a, r in agents.items()}
                 for f, agents in data.get("desired", {}).items()
@@ -56,6 +63,7 @@ class Registry:
             return
         data = {
             "plans": {f: plan.model_dump() for f, plan in self._plans.items()},
+            "history": {f: [plan.model_dump() for plan in plans] for f, plans in self._history.items()},
             "agents": {f: {a: s.model_dump() for a, s in agents.items()} for f, agents in self._agents.items()},
             "desired": {f: {a: r.model_dump() for a, r in agents.items()} for f, agents in self._desired.items()},
         }
@@ -84,6 +92,8 @@ class Registry:
             held = self._plans.get(plan.fleet)
             if held is None or plan.generation >= held.generation:
                 self._plans[plan.fleet] = plan
+                history = [kept for kept in self._history.get(plan.fleet, []) if kept.generation != plan.generation]
+                self._history[plan.fleet] = [*history, plan][-HISTORY:]  # `fleet down` included
                 if not plan.robots:  # `fleet down`: forget the fleet
                     self._plans.pop(plan.fleet)
                     self._agents.pop(plan.fleet, None)
@@ -138,7 +148,13 @@ class Registry:
                     a: p.AgentSeen(online=s.online, last_seen=now if s.online else s.last_seen)
                     for a, s in self._agents.get(fleet, {}).items()
                 }
-                replies.append((fleet, p.RegistryReply(fleet=fleet, plan=self._plans.get(fleet), agents=agents)))
+                registry = p.RegistryReply(
+                    fleet=fleet,
+                    plan=self._plans.get(fleet),
+                    agents=agents,
+                    history=list(self._history.get(fleet, [])),
+                )
+                replies.append((fleet, registry))
         for fleet, reply in replies:
             query.reply(p.registry_key(fleet), p.encode(reply))
 
