@@ -26,6 +26,7 @@ import threading
 from pathlib import Path
 
 log = logging.getLogger("fleet.bridge")
+STATS_PERIOD = 10.0  # s between the bridge's traffic lines in its log
 
 
 def message_class(type_name: str):
@@ -127,7 +128,19 @@ def main(argv: list[str]) -> int:
         # set (hundreds of subscriptions) for each message.
         spinner = threading.Thread(target=_spin, args=(executor,), name="fleet-bridge-ros", daemon=True)
         spinner.start()
-        stop.wait()
+        # A line every 10 s while messages flow or stop flowing: what `fleet logs` cannot show.
+        last = dict(bridge.counts)
+        while not stop.wait(STATS_PERIOD):
+            now = dict(bridge.counts)
+            if now != last or any(last.values()):
+                log.info(
+                    "last %.0f s: %d messages out, %d in (routers: %d)",
+                    STATS_PERIOD,
+                    now["out"] - last["out"],
+                    now["in"] - last["in"],
+                    len(list(session.info.routers_zid())),
+                )
+            last = now
         log.info(
             "bridge of fleet %s stopping: %d messages out, %d in", fleet, bridge.counts["out"], bridge.counts["in"]
         )

@@ -169,9 +169,11 @@ class Fleet:
 
     def log_tails(self, lines: int = 15) -> str:
         parts = []
-        for key in self.processes:
-            text = (self.root / f"{key}.log").read_text(errors="replace").splitlines()[-lines:]
-            parts.append(f"--- {key} ---\n" + "\n".join(text))
+        logs = [self.root / f"{key}.log" for key in self.processes]
+        logs += sorted((self.root / "agents").glob("*/services/*.bridge.log"))
+        for path in logs:
+            text = path.read_text(errors="replace").splitlines()[-lines:] if path.exists() else []
+            parts.append(f"--- {path.relative_to(self.root)} ---\n" + "\n".join(text))
         return "\n".join(parts)
 
     def stop(self) -> None:
