@@ -12,7 +12,7 @@ and measures
   is what the fleet really costs) and, for comparison, of RSS (counts shared pages once per
   process, so it overstates a sum).
 
-Usage: .venv/bin/python bench/bench_isolation.py [--robots 1 10 30] [--isolation process robot agent]
+Usage: .venv/bin/python bench/bench_isolation.py [--robots 10 30 100] [--isolation process robot agent]
        [--group-size 25] [--output bench/results/isolation.md]
 """
 
@@ -255,15 +255,15 @@ def report(results: list[dict], info: dict[str, str], group_size: int) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robots", type=int, nargs="+", default=[1, 10, 30])
+    parser.add_argument("--robots", type=int, nargs="+", default=[10, 30, 100])
     parser.add_argument("--isolation", nargs="+", default=["process", "robot", "agent"])
     parser.add_argument("--group-size", type=int, default=25, help="robots per host process (agent)")
     parser.add_argument(
         "--limit",
         nargs="*",
-        default=["process=30", "robot=100"],
+        default=["process=10", "robot=30"],
         metavar="ISOLATION=N",
-        help="run an isolation only up to N robots (process isolation does not come up at 30+ on 2 cores)",
+        help="run an isolation only up to N robots (process: 120 s to 30 robots on 2 cores, or never)",
     )
     parser.add_argument("--repeat", type=int, default=1, help="runs of each case (all reported)")
     parser.add_argument(

@@ -247,6 +247,10 @@ class Host:
             )
         except (TimeoutException, ShutdownException, ConditionReachedException):
             return
+        except Exception as error:  # e.g. an entity of a node destroyed a moment ago: wait again
+            print(f"{PROGRAM}: waiting for callbacks: {error!r}", file=sys.stderr, flush=True)
+            time.sleep(0.05)
+            return
         handler()
         error = handler.exception()
         if error is None:
