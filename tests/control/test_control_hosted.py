@@ -20,16 +20,20 @@ ROBOTS = ["robot1", "robot2", "robot3"]
 HOSTED = {"controller", "battery"}
 
 
-def hosted_spec(cluster, robots: list[str]):
+def hosted_spec(cluster, robots: list[str], speeds: dict[str, float] | None = None):
     return cluster.spec(
         name="hosted",
         fleet="hosted",
         defaults={"template": "hosted", "agent": "hostA", "isolation": "agent", "group_size": 2},
         robots=[
-            {"name": name, "parameters": {"controller": {"max_speed": 0.1 * (ROBOTS.index(name) + 1)}}}
+            {"name": name, "parameters": {"controller": {"max_speed": (speeds or {}).get(name, speed(name))}}}
             for name in robots
         ],
     )
+
+
+def speed(name: str) -> float:
+    return 0.1 * int(name.removeprefix("robot"))
 
 
 def snapshot(view) -> dict[str, dict]:
@@ -119,17 +123,30 @@ def test_robots_hosted_by_their_agent(fresh_cluster):
     sleeper = cluster.cli("logs", "robot1", "sleeper", "--connect", cluster.endpoint)
     assert "sleeper started" in sleeper.stdout or "tick" in sleeper.stdout, sleeper.stdout + sleeper.stderr
 
-    # Removing robot1 by a redeploy touches neither robot2 (same host) nor robot3.
-    outcome = cluster.deploy(hosted_spec(cluster, ["robot2", "robot3"]), timeout=60)
+    # A redeploy removing robot1 and adding robot4 touches neither robot2 nor robot3; robot4
+    # takes robot1's place in robot2's host.
+    outcome = cluster.deploy(hosted_spec(cluster, ["robot2", "robot3", "robot4"]), timeout=60)
     assert outcome.ok, outcome.view and outcome.view.robots
     poll(
-        lambda: set(snapshot(cluster.view("hosted"))),
-        until=lambda names: names == {"robot2", "robot3"},
+        lambda: snapshot(cluster.view("hosted")),
+        until=lambda rows: (
+            set(rows) == {"robot2", "robot3", "robot4"} and {node[0] for node in rows["robot4"].values()} == {"running"}
+        ),
         timeout=30,
-        what="robot1 removed",
+        what="robot1 removed, robot4 running",
     )
     final = snapshot(cluster.view("hosted"))
     assert final["robot2"] == after["robot2"] and final["robot3"] == after["robot3"]
+    assert {final["robot4"][node][1] for node in HOSTED} == host12
     # The parameter set on robot2 survived: its nodes were not recreated.
     got = cluster.cli("param", "get", "robot2", "controller", "max_speed", "--connect", cluster.endpoint)
     assert json.loads(got.stdout) == 0.9
+
+    # A redeploy changing robot3's parameters restarts robot3 alone, with its new value.
+    changed = hosted_spec(cluster, ["robot2", "robot3", "robot4"], speeds={"robot3": 0.75})
+    outcome = cluster.deploy(changed, timeout=60)
+    assert outcome.ok, outcome.view and outcome.view.robots
+    got = cluster.cli("param", "get", "robot3", "controller", "max_speed", "--connect", cluster.endpoint)
+    assert got.returncode == 0 and json.loads(got.stdout) == 0.75, got.stdout + got.stderr
+    last = snapshot(cluster.view("hosted"))
+    assert last["robot2"] == final["robot2"] and last["robot4"] == final["robot4"]
