@@ -159,15 +159,15 @@ class Host:
             if robot.state != "running":
                 return {"ok": False, "error": robot.error}
             return {"ok": True}
-        robot = self.robots.get(name)
-        if robot is None:
+        held = self.robots.get(name)
+        if held is None:
             raise RequestError(f"no robot {name!r} here")
         if op == "remove":
-            self.destroy(robot)
+            self.destroy(held)
             del self.robots[name]
             return {"ok": True}
         # fault: the named node's next timer callback raises (fault injection).
-        node = next((n for n in robot.live if n.get_name() == request["node"]), None)
+        node = next((n for n in held.live if n.get_name() == request["node"]), None)
         if node is None:
             raise RequestError(f"robot {name!r} runs no node {request['node']!r} now")
 
@@ -242,9 +242,10 @@ class Host:
         from rclpy.executors import ConditionReachedException, ShutdownException, TimeoutException
 
         try:
-            handler, _entity, node = self.executor.wait_for_ready_callbacks(
+            ready: tuple[Any, Any, Any] = self.executor.wait_for_ready_callbacks(
                 WAIT, None, lambda: not self.requests.empty()
             )
+            handler, node = ready[0], ready[2]
         except (TimeoutException, ShutdownException, ConditionReachedException):
             return
         except Exception as error:  # e.g. an entity of a node destroyed a moment ago: wait again
@@ -252,14 +253,14 @@ class Host:
             time.sleep(0.05)
             return
         handler()
-        error = handler.exception()
-        if error is None:
+        raised = handler.exception()
+        if raised is None:
             return
         robot_name = self.owner.get(id(node)) if node is not None else None
         if robot_name is None:  # a node destroyed a moment ago, or no node at all: nobody to restart
-            print(f"{PROGRAM}: exception in a callback of no live robot: {error!r}", file=sys.stderr, flush=True)
+            print(f"{PROGRAM}: exception in a callback of no live robot: {raised!r}", file=sys.stderr, flush=True)
             return
-        self.fault(self.robots[robot_name], node, error)
+        self.fault(self.robots[robot_name], node, raised)
 
     def shutdown(self) -> None:
         for robot in self.robots.values():

@@ -127,7 +127,7 @@ class HostProcess:
         self.started_at = 0.0
         self._lock = threading.Lock()  # robots, popen
         self._channel_lock = threading.Lock()  # one request/reply at a time
-        self._channel: IO[bytes] | None = None
+        self._channel: Any = None  # the connection's buffered reader/writer
         self._connection: socket.socket | None = None
         self._wake = threading.Event()
         self._stopping = threading.Event()
