@@ -1,8 +1,10 @@
-"""Memory and start-up time per robot: `isolation: process` vs `isolation: robot`.
+"""Memory and start-up time per robot: `isolation: process` vs `robot` vs `agent`.
 
 For N robots (default 1, 10, 30) this writes one launch file per robot (controller, battery and
 safety of fleet_nodes in /robotK, parameters from a file, as `fleet render` produces them),
-starts one LaunchSession per robot in an isolated ROS domain, and measures
+starts one LaunchSession per robot in an isolated ROS domain (with `agent`, the sessions leave
+their fleet nodes to one HostPool, as an agent does: host processes of --group-size robots),
+and measures
 
 - start-up: from the first start() until every node is in the ROS graph (seen by a probe node);
 - memory: after the graph is complete and a settling pause, the sum over every node process of
@@ -10,7 +12,8 @@ starts one LaunchSession per robot in an isolated ROS domain, and measures
   is what the fleet really costs) and, for comparison, of RSS (counts shared pages once per
   process, so it overstates a sum).
 
-Usage: .venv/bin/python bench/bench_isolation.py [--robots 1 10 30] [--output bench/results/isolation.md]
+Usage: .venv/bin/python bench/bench_isolation.py [--robots 10 30 100] [--isolation process robot agent]
+       [--group-size 25] [--output bench/results/isolation.md]
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import psutil
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.machine import machine_info
+from fleet.runtime.hosting import HostPool
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.isolation import reserve_domain_id, ros_environment
@@ -138,16 +142,19 @@ def cpu_seconds(pids: set[int]) -> float:
     return total
 
 
-def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe) -> dict:
+def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe, group_size: int = 25) -> dict:
     paths, expected = write_robots(robots, workdir)
     sessions = [
         LaunchSession(path, env=env, log_dir=workdir / "logs" / path.stem, isolation=isolation, backend="embedded")
         for path in paths
     ]
+    pool = HostPool(workdir / "hosts", env, group_size) if isolation == "agent" else None
     try:
         began = time.monotonic()
         for session in sessions:
             session.start()
+            if pool is not None:
+                pool.add_robot(session.path.stem.removesuffix(".launch"), session.hosted_nodes(), session.log_dir)
         complete = probe.wait_for(expected, timeout=120 + 5 * robots)
         startup = time.monotonic() - began
         if not complete:
@@ -158,6 +165,11 @@ def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe
                 if status.state != "running" or status.pid is None:  # a running process has a pid
                     raise RuntimeError(f"{status.process} is {status.state}: {session.tail(status.process)}")
                 pids.update(group_members(status.pid))
+        for host in pool.hosts if pool is not None else []:
+            pid = host.pid()
+            if pid is None:
+                raise RuntimeError(f"{host.name} is not running: {host.output.tail(20)}")
+            pids.update(group_members(pid))
         # CPU the processes spent to get there: independent of DDS discovery jitter.
         startup_cpu = cpu_seconds(pids)
         time.sleep(SETTLE)
@@ -167,6 +179,8 @@ def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe
             pss += process_pss
             rss += process_rss
     finally:
+        if pool is not None:
+            pool.stop()
         for session in sessions:
             session.stop()
     probe.wait_gone({namespace for _, namespace in expected}, timeout=15)
@@ -182,13 +196,15 @@ def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe
     }
 
 
-def report(results: list[dict], info: dict[str, str]) -> str:
+def report(results: list[dict], info: dict[str, str], group_size: int) -> str:
     lines = [
-        "# Isolation benchmark: `process` vs `robot`",
+        "# Isolation benchmark: `process` vs `robot` vs `agent`",
         "",
         "Produced by `bench/bench_isolation.py`. Each robot is one launch file with the fleet_nodes",
         "controller, battery and safety (parameters from a file, as rendered), started by the embedded",
         "runner, one LaunchSession per robot, in an isolated ROS domain (FastDDS, localhost).",
+        f"With `agent` the fleet nodes are hosted by host processes of {group_size} robots each",
+        "(fleet.runtime.hosting, as an agent runs them).",
         "",
         "- start-up: from the first `start()` until every node is in the ROS graph (probe node);",
         "  this includes FastDDS discovery, which adds a jitter of up to ~3 s (its announcement",
@@ -213,24 +229,37 @@ def report(results: list[dict], info: dict[str, str]) -> str:
             f"{row['pss_mib_per_robot']:.1f} | "
             f"{row['rss_mib_per_robot']:.1f} | {row['pss_mib_total']:.0f} |"
         )
-    lines += ["", "Ratio robot/process of PSS per robot:", ""]
+    lines += ["", "Ratios to `process` of PSS per robot (`process` at the same size, else its largest run):", ""]
     by_key = {(row["robots"], row["isolation"]): row for row in results}  # last repeat
+    process_runs = sorted(robots for robots, isolation in by_key if isolation == "process")
     for robots in sorted({row["robots"] for row in results}):
-        process, robot = by_key.get((robots, "process")), by_key.get((robots, "robot"))
-        if process and robot:
-            ratio = robot["pss_mib_per_robot"] / process["pss_mib_per_robot"]
-            speed = robot["startup_s"] / process["startup_s"]
-            cpu = robot["startup_cpu_s"] / process["startup_cpu_s"]
-            lines.append(
-                f"- {robots} robots: memory (PSS) {ratio:.2f}x, start-up time {speed:.2f}x, start-up CPU {cpu:.2f}x"
-            )
+        reference = robots if robots in process_runs else (process_runs[-1] if process_runs else None)
+        process = by_key.get((reference, "process")) if reference is not None else None
+        for isolation in ("robot", "agent"):
+            row = by_key.get((robots, isolation))
+            if process and row:
+                ratio = row["pss_mib_per_robot"] / process["pss_mib_per_robot"]
+                speed = row["startup_s"] / process["startup_s"]
+                cpu = row["startup_cpu_s"] / process["startup_cpu_s"]
+                lines.append(
+                    f"- {robots} robots, {isolation} (vs process at {reference}): memory (PSS) {ratio:.3f}x, "
+                    f"start-up time {speed:.2f}x, start-up CPU per robot {cpu * reference / robots:.2f}x"
+                )
     return "\n".join(lines) + "\n"
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robots", type=int, nargs="+", default=[1, 10, 30])
-    parser.add_argument("--isolation", nargs="+", default=["process", "robot"])
+    parser.add_argument("--robots", type=int, nargs="+", default=[10, 30, 100])
+    parser.add_argument("--isolation", nargs="+", default=["process", "robot", "agent"])
+    parser.add_argument("--group-size", type=int, default=25, help="robots per host process (agent)")
+    parser.add_argument(
+        "--limit",
+        nargs="*",
+        default=["process=10", "robot=30"],
+        metavar="ISOLATION=N",
+        help="run an isolation only up to N robots (process: 120 s to 30 robots on 2 cores, or never)",
+    )
     parser.add_argument("--repeat", type=int, default=1, help="runs of each case (all reported)")
     parser.add_argument(
         "--env",
@@ -242,6 +271,7 @@ def main() -> int:
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "isolation.md")
     args = parser.parse_args()
     info = machine_info()
+    limits = {name: int(value) for name, value in (item.split("=", 1) for item in args.limit)}
     results = []
     with tempfile.TemporaryDirectory(prefix="fleet-bench-") as workdir, reserve_domain_id() as domain:
         env = ros_environment(domain.domain_id)
@@ -257,9 +287,11 @@ def main() -> int:
             for robots in args.robots:
                 for repeat in range(args.repeat):
                     for isolation in args.isolation:
+                        if robots > limits.get(isolation, robots):
+                            continue
                         case_dir = Path(workdir) / f"{isolation}-{robots}-{repeat}"
                         case_dir.mkdir()
-                        row = run_case(robots, isolation, case_dir, env, probe)
+                        row = run_case(robots, isolation, case_dir, env, probe, args.group_size)
                         results.append(row)
                         print(
                             f"{robots:>3} robots {isolation:<8} {row['processes']:>3} processes "
@@ -272,7 +304,7 @@ def main() -> int:
             probe.close()
     if args.env:
         info["node environment"] = " ".join(args.env)
-    text = report(results, info)
+    text = report(results, info, args.group_size)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(text)
     print(text)

@@ -55,8 +55,11 @@ def run(
     import signal
     import threading
 
+    from fleet.runtime.isolation import HOSTED
     from fleet.runtime.supervisor import LaunchSession
 
+    if isolation == HOSTED:  # its host processes belong to an agent, which `fleet run` is not
+        raise FleetError(f"isolation '{HOSTED}' is run by an agent (fleet deploy); here use 'robot'")
     session = LaunchSession(
         file,
         launch_args=_launch_args(launch_args or []),

@@ -43,6 +43,7 @@ from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
 from fleet.control.state import AgentStore, FleetState
 from fleet.control.units import UNIT_MARKER, Unit
 from fleet.files import write_atomic
+from fleet.spec.model import DEFAULT_GROUP_SIZE
 
 if TYPE_CHECKING:
     import zenoh
@@ -95,6 +96,8 @@ class Agent:
         self._publishers: dict[str, tuple[Any, Any]] = {}  # fleet -> (status, world) publishers
         # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
         self._services: dict[tuple[str, str], Any] = {}
+        # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
+        self._hosting: dict[tuple[str, str, int], Any] = {}
         self._work: queue.Queue[str | None] = queue.Queue()
         self._requests = ThreadPoolExecutor(max_workers=4, thread_name_prefix="fleet-agent-req")
         # Parameter calls take seconds (an rclpy helper process): their own pool, so status and
@@ -387,7 +390,8 @@ class Agent:
             for name in changes.stop:
                 self._units.pop((fleet, name), None)
         for name in changes.start + changes.restart:
-            unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), env)
+            hosts = self._host_pool(fleet, env, desired[name])
+            unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), env, hosts)
             unit.generation = generation
             with self._lock:
                 self._units[(fleet, name)] = unit
@@ -400,8 +404,32 @@ class Agent:
             units[name].generation = generation
         with self._lock:
             self._reconciled[fleet] = generation
+        self._drop_idle_host_pools()
         for name in changes.stop:
             shutil.rmtree(self.store.unit_dir(fleet, name), ignore_errors=True)
+
+    def _host_pool(self, fleet: str, env: dict[str, str], bundle: p.BundleMessage):
+        """The host processes of isolation: agent for this robot (None: it runs its own)."""
+        from fleet.runtime.hosting import HostPool
+        from fleet.runtime.isolation import HOSTED
+
+        if bundle.options.get("isolation") != HOSTED:
+            return None
+        group_size = int(bundle.options.get("group_size", "0") or 0) or DEFAULT_GROUP_SIZE
+        key = (fleet, json.dumps(env, sort_keys=True), group_size)
+        with self._lock:
+            pool = self._hosting.get(key)
+            if pool is None:
+                directory = self.store.root / "hosts" / f"{fleet}-{len(self._hosting) + 1}"
+                pool = self._hosting[key] = HostPool(directory, env, group_size)
+        return pool
+
+    def _drop_idle_host_pools(self) -> None:
+        with self._lock:
+            idle = [key for key, pool in self._hosting.items() if not pool.robots()]
+            pools = [self._hosting.pop(key) for key in idle]
+        for pool in pools:
+            pool.stop()
 
     def _unit_env(self, domain_id: int, discovery_server: str | None) -> dict[str, str]:
         from fleet.runtime.environment import ros_environment
@@ -487,6 +515,11 @@ class Agent:
             thread.start()
         for thread in threads:
             thread.join()
+        with self._lock:
+            pools = list(self._hosting.values())
+            self._hosting.clear()
+        for pool in pools:
+            pool.stop()
 
     # -- status ---------------------------------------------------------------------------------
 

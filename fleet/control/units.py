@@ -29,12 +29,22 @@ UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
 WORLD_STATUS_FILE = "world.status.json"  # written by the world next to world.yaml (templates/world.launch.yaml.j2)
 
 if TYPE_CHECKING:
+    from fleet.runtime.hosting import HostPool
     from fleet.runtime.supervisor import LaunchSession
 
 
 class Unit:
-    def __init__(self, fleet: str, bundle: BundleMessage, directory: Path, env: dict[str, str]):
+    def __init__(
+        self,
+        fleet: str,
+        bundle: BundleMessage,
+        directory: Path,
+        env: dict[str, str],
+        hosts: HostPool | None = None,  # where its fleet nodes run under isolation: agent
+    ):
         self.fleet = fleet
+        self.hosts = hosts
+        self.hosted = False  # its fleet nodes are in self.hosts
         self.bundle = bundle
         self.directory = directory
         self.env = env
@@ -89,12 +99,21 @@ class Unit:
                 backend="auto",
             )
             self.session.start()
+            hosted = self.session.hosted_nodes()
+            if hosted:
+                if self.hosts is None:
+                    raise ValueError("isolation 'agent' needs the agent's host processes")
+                self.hosts.add_robot(self.name, hosted, self.log_dir)
+                self.hosted = True
         except Exception as error:  # a bad bundle fails this unit, never the agent
             self.error = str(error) or type(error).__name__
-            self.session = None
+            self.stop()
 
     def stop(self) -> None:
         session, self.session = self.session, None
+        if self.hosted and self.hosts is not None:
+            self.hosted = False
+            self.hosts.remove_robot(self.name)
         if session is not None:
             session.stop()
 
@@ -104,7 +123,8 @@ class Unit:
         if self.session is None:
             return []
         states = []
-        for node in self.session.status():
+        hosted = self.hosts.node_status(self.name) if self.hosted and self.hosts is not None else []
+        for node in [*hosted, *self.session.status()]:
             assert node.name is not None  # fleet's launch files name every node (fleet.expand.outline)
             states.append(
                 NodeState(
@@ -185,9 +205,14 @@ class Unit:
         return [state.name for state in self.node_states()]
 
     def log_file(self, node: str) -> Path | None:
-        """The log file of the process hosting `node` (the runner keeps one per process)."""
+        """The log file of the process hosting `node` (the runner keeps one per process; a host
+        process of isolation: agent one per hosted node)."""
         if self.session is None:
             return None
+        if self.hosted and self.hosts is not None:
+            path = self.hosts.log_file(self.name, node)
+            if path is not None:
+                return path
         try:
             return self.session.log_file(node)
         except KeyError:

@@ -282,8 +282,15 @@ def _robot_bundle(spec: FleetSpec, plan: RobotPlan) -> Bundle:
         agent=plan.agent,
         entry=f"{plan.name}.launch.yaml",
         files=files,
-        options={"isolation": plan.isolation},
+        options=isolation_options(spec, plan.isolation),
     )
+
+
+def isolation_options(spec: FleetSpec, isolation: str) -> dict[str, str]:
+    """What the agent needs to know to place the robot's processes."""
+    if isolation == "agent":
+        return {"isolation": isolation, "group_size": str(spec.defaults.group_size)}
+    return {"isolation": isolation}
 
 
 def params_file_text(spec: FleetSpec, plan: RobotPlan) -> str:

@@ -3,7 +3,9 @@
 `process` isolation: one process per node, as `ros2 launch` does.  `robot` isolation: the
 fleet_nodes controller, battery and safety nodes of the launch share one `composite` process
 (one rclpy runtime instead of three: the memory lever of DESIGN.md), each node keeping the exact
-ROS arguments it would get alone; every other node still runs alone.
+ROS arguments it would get alone; every other node still runs alone.  `agent` isolation: those
+nodes are hosted instead by the agent's shared host processes (fleet.runtime.hosting, one for
+up to group_size robots); the launch session runs only the others, each alone.
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ from pathlib import Path
 from fleet.runtime.ament import PACKAGE
 from fleet.runtime.launch_file import NodeLaunch
 
-ISOLATIONS = ("process", "robot")
+ISOLATIONS = ("process", "robot", "agent")
+HOSTED = "agent"  # the isolation whose composable nodes run in an agent's host processes
 COMPOSABLE = ("controller", "battery", "safety")
 
 
@@ -43,7 +46,7 @@ def single(node: NodeLaunch) -> ProcessSpec:
     )
 
 
-def _composable(node: NodeLaunch) -> bool:
+def composable(node: NodeLaunch) -> bool:
     # Plain (non-ROS) arguments would have nowhere to go in the composite's argv.
     return (
         node.package == PACKAGE and node.executable in COMPOSABLE and len(node.cmd) > 1 and node.cmd[1] == "--ros-args"
@@ -72,11 +75,13 @@ def plan_processes(nodes: list[NodeLaunch], isolation: str = "process") -> list[
         raise ValueError(f"isolation must be one of {ISOLATIONS}, got {isolation!r}")
     if isolation == "process":
         return [single(node) for node in nodes]
+    if isolation == HOSTED:  # the composable ones are the agent's to host
+        return [single(node) for node in nodes if not composable(node)]
     # Nodes can share a process only if they need the same environment and the same
     # executable directory (the same fleet_nodes installation).
     groups: dict[tuple, list[NodeLaunch]] = {}
     for node in nodes:
-        if _composable(node):
+        if composable(node):
             key = (tuple(sorted(node.env.items())), str(Path(node.cmd[0]).parent))
             groups.setdefault(key, []).append(node)
     shared = {id(node) for group in groups.values() if len(group) > 1 for node in group}

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from fleet.errors import FleetError, LaunchFileError, Location
 from fleet.runtime import ament
-from fleet.runtime.isolation import ISOLATIONS, ProcessSpec, plan_processes
+from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, load_launch_file
 from fleet.runtime.node_log import ProcessOutput
 from fleet.runtime.processes import group_exists, signal_group, spawn
@@ -186,6 +186,12 @@ class LaunchSession:
                     )
         return result
 
+    def hosted_nodes(self) -> list[NodeLaunch]:
+        """The nodes this session leaves to an agent's host processes (isolation: agent)."""
+        if self.isolation != HOSTED or self.plan is None:
+            return []
+        return [node for node in self.plan.nodes if composable(node)]
+
     def tail(self, node: str, lines: int = 20) -> list[str]:
         """Last lines of the process hosting `node` (a node name, fqn, or process name)."""
         return self._find(node).output.tail(lines)
@@ -257,7 +263,7 @@ class LaunchSession:
             if ros2 is None:
                 raise FleetError("backend 'ros2' needs the `ros2` command on PATH")
             if self.isolation != "process":
-                raise FleetError("isolation 'robot' needs the embedded backend")
+                raise FleetError(f"isolation '{self.isolation}' needs the embedded backend")
             if not self.path.is_file():
                 raise LaunchFileError("launch file not found", Location(self.path))
             self.backend = "ros2"

@@ -88,12 +88,30 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
             check_agent(robot.agent, (*here, "agent"))
         check_parameters(robot.parameters, (*here, "parameters"), source)
         check_launch_args(robot.launch_args, (*here, "launch_args"), source)
+    check_capacity(spec, source)
     if spec.world is not None:
         names: set[str] = set()
         for index, obstacle in enumerate(spec.world.obstacles):
             if obstacle.name in names:
                 fail(f"duplicate obstacle name {obstacle.name!r}", ("world", "obstacles", index, "name"))
             names.add(obstacle.name)
+
+
+def check_capacity(spec: FleetSpec, source: SourceMap) -> None:
+    """No agent gets more robots than its max_robots: the first robot over the limit is refused."""
+    placed: dict[str, int] = {}
+    for index, robot in enumerate(spec.robots):
+        agent = robot.agent or spec.defaults.agent
+        placed[agent] = placed.get(agent, 0) + 1
+        limit = spec.agents[agent].max_robots if agent in spec.agents else placed[agent]
+        if placed[agent] > limit:
+            total = sum(1 for other in spec.robots if (other.agent or spec.defaults.agent) == agent)
+            path = ("robots", index, "agent") if robot.agent else ("robots", index, "name")
+            raise SpecError(
+                f"robot {robot.name!r}: agent {agent!r} holds at most {limit} robots "
+                f"(agents.{agent}.max_robots), the spec places {total} on it",
+                source.locate(path),
+            )
 
 
 def check_launch_args(arguments: dict[str, Any], path: DocPath, source: SourceMap) -> None:

@@ -29,6 +29,11 @@ def _ints_to_floats(data: Any, keep: frozenset[str] = frozenset()) -> Any:
 
 ScalarArg = bool | int | float | str
 
+# process: one process per node; robot: a robot's fleet_nodes share one process; agent: the
+# fleet_nodes of all robots of an agent share host processes of up to group_size robots each.
+DEFAULT_GROUP_SIZE = 25  # robots per host process under isolation: agent (bench/results/isolation.md)
+DEFAULT_MAX_ROBOTS = 300  # robots one agent accepts (the 2-core measurement of bench/README.md)
+
 
 class Strict(BaseModel):
     # Unknown keys are errors (with a did-you-mean, see load.py); no silent coercion of
@@ -128,15 +133,17 @@ class Ros(Strict):
 
 class Agent(Strict):
     description: str = ""
+    max_robots: int = Field(DEFAULT_MAX_ROBOTS, ge=1)  # robots this agent accepts, any isolation
 
 
-Isolation = Literal["process", "robot"]
+Isolation = Literal["process", "robot", "agent"]
 
 
 class Defaults(Strict):
     template: str = "diff_drive"
     agent: str = "local"
     isolation: Isolation = "process"
+    group_size: int = Field(DEFAULT_GROUP_SIZE, ge=1)  # robots per host process (isolation: agent)
     model: Model = Model()
     lidar: Lidar = Lidar()
     parameters: dict[str, dict[str, Any]] = {}  # node -> parameter -> value

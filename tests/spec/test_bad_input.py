@@ -96,6 +96,24 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             [":5:", "namespace /robot1 already used"],
         ),
         ("- just\n- a list\n", [":1:1:", "mapping"]),
+        (
+            "fleet: demo\ndefaults: {isolation: thread}\nrobots: [{name: r1}]\n",
+            [":2:", "defaults.isolation", "'process', 'robot' or 'agent'", "'thread'"],
+        ),
+        (
+            "fleet: demo\nrobots:\n  - name: r1\n    isolation: hosts\n",
+            [":4:", "isolation", "'process', 'robot' or 'agent'"],
+        ),
+        (
+            "fleet: demo\ndefaults: {isolation: agent, group_size: 0}\nrobots: [{name: r1}]\n",
+            [":2:42:", "defaults.group_size", "greater than or equal to 1"],
+        ),
+        ("fleet: demo\ndefaults: {group_size: -3}\nrobots: [{name: r1}]\n", [":2:", "group_size"]),
+        (
+            "fleet: demo\nagents: {local: {max_robots: 2}}\ndefaults: {isolation: agent}\n"
+            "robots:\n  - name: r1\n  - name: r2\n  - name: r3\n",
+            [":7:11:", "robot 'r3'", "agent 'local' holds at most 2 robots", "agents.local.max_robots", "places 3"],
+        ),
         ("fleet: demo\nfleet: other\nrobots: [{name: r1}]\n", [":2:1:", "duplicate key 'fleet'"]),
     ],
 )

@@ -1,0 +1,73 @@
+"""The pure parts of isolation: agent: placing robots in hosts, host requests, request checks."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from fleet.nodes.host import RequestError, parse_request
+from fleet.runtime.hosting import LOG_LINE, add_request, host_command, logger_name, place
+from fleet.runtime.isolation import plan_processes
+from fleet.runtime.launch_file import load_launch_file
+from tests.runtime.test_command_line import _robot_plan
+
+
+def test_place_fills_hosts_in_order_up_to_the_group_size():
+    assert place([], 25) is None
+    assert place([25, 3], 25) == 1
+    assert place([2, 0], 2) == 1
+    assert place([1, 0], 2) == 0
+    assert place([1, 1, 1], 1) is None
+
+
+def test_logger_names_follow_rcutils():
+    assert logger_name("/robot1/controller") == "robot1.controller"
+    assert logger_name("/site/a/r1/battery") == "site.a.r1.battery"
+    match = LOG_LINE.match("[ERROR] [1700000000.123456789] [robot1.controller]: boom")
+    assert match and match.group(1) == "robot1.controller"
+    assert LOG_LINE.match("Traceback (most recent call last):") is None
+
+
+def test_agent_isolation_leaves_composable_nodes_to_the_host(prefix, tmp_path):
+    prefix.add("talker", "#!/bin/sh\nexec sleep 100\n")
+    extra = tmp_path / "more.launch.yaml"
+    extra.write_text(
+        "launch:\n"
+        "- node: {pkg: demo, exec: talker, name: t}\n"
+        "- node: {pkg: fleet_nodes, exec: controller, name: c1, namespace: r1}\n"
+        "- node: {pkg: fleet_nodes, exec: safety, name: s1, namespace: r1, args: --plain}\n"
+    )
+    plan = load_launch_file(extra, env=prefix.env(), params_dir=tmp_path / "params")
+    # The host takes the controller; the talker and the safety node with a plain argument run alone.
+    assert [spec.name for spec in plan_processes(plan.nodes, "agent")] == ["talker-1", "safety-1"]
+
+
+def test_add_request_carries_each_nodes_own_arguments(prefix, tmp_path):
+    plan = _robot_plan(prefix, tmp_path)
+    request = add_request("robot1", plan.nodes)
+    assert request["op"] == "add" and request["robot"] == "robot1"
+    assert [(n["executable"], n["ros_args"]) for n in request["nodes"]] == [
+        (node.executable, node.cmd[1:]) for node in plan.nodes
+    ]
+    assert parse_request(json.dumps(request).encode()) == request  # the host accepts what we send
+    assert host_command(tmp_path / "h.sock")[-2:] == ["--control", str(tmp_path / "h.sock")]
+
+
+@pytest.mark.parametrize(
+    "line, problem",
+    [
+        (b"{nope", "not JSON"),
+        (b"[1, 2]", '"op"'),
+        (b'{"op": "launch"}', "unknown op 'launch'"),
+        (b'{"op": "remove"}', '"robot"'),
+        (b'{"op": "add", "robot": "r1", "nodes": []}', "non-empty list"),
+        (b'{"op": "add", "robot": "r1", "nodes": [{"executable": "rm", "ros_args": []}]}', "executable of"),
+        (b'{"op": "add", "robot": "r1", "nodes": [{"executable": "battery", "ros_args": "-r"}]}', "list of strings"),
+        (b'{"op": "fault", "robot": "r1"}', '"node"'),
+    ],
+)
+def test_bad_host_requests_are_refused(line, problem):
+    with pytest.raises(RequestError) as refused:
+        parse_request(line)
+    assert problem in str(refused.value)
