@@ -236,11 +236,11 @@ def report(results: list[dict], info: dict[str, str], group_size: int) -> str:
         reference = robots if robots in process_runs else (process_runs[-1] if process_runs else None)
         process = by_key.get((reference, "process")) if reference is not None else None
         for isolation in ("robot", "agent"):
-            row = by_key.get((robots, isolation))
-            if process and row:
-                ratio = row["pss_mib_per_robot"] / process["pss_mib_per_robot"]
-                speed = row["startup_s"] / process["startup_s"]
-                cpu = row["startup_cpu_s"] / process["startup_cpu_s"]
+            hosted = by_key.get((robots, isolation))
+            if process and hosted:
+                ratio = hosted["pss_mib_per_robot"] / process["pss_mib_per_robot"]
+                speed = hosted["startup_s"] / process["startup_s"]
+                cpu = hosted["startup_cpu_s"] / process["startup_cpu_s"]
                 lines.append(
                     f"- {robots} robots, {isolation} (vs process at {reference}): memory (PSS) {ratio:.3f}x, "
                     f"start-up time {speed:.2f}x, start-up CPU per robot {cpu * reference / robots:.2f}x"

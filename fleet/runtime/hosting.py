@@ -439,7 +439,7 @@ class HostPool:
             return None
         for launch in hosted.nodes:
             if node in (launch.name, launch.fqn):
-                return hosted.outputs[node_key(launch)].log.path
+                return hosted.outputs[node_key(launch)].path
         return None
 
     def stop(self) -> None:

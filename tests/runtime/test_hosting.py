@@ -137,8 +137,10 @@ def test_robots_share_hosts_and_a_fault_stays_with_its_robot(ros_env, probe, tmp
         log = pool.log_file("robot2", "controller")
         assert log is not None
         poll(lambda: log.read_text(), until=lambda text: "fault injected" in text, timeout=10, what="traceback in log")
-        assert "fault injected" not in pool.log_file("robot1", "controller").read_text()
-        assert "robot2.controller" not in pool.log_file("robot1", "controller").read_text()
+        other = pool.log_file("robot1", "controller")
+        assert other is not None
+        assert "fault injected" not in other.read_text()
+        assert "robot2.controller" not in other.read_text()
 
         # Removing robot1 leaves robot2 (same host) and robot3 alone.
         pool.remove_robot("robot1")
