@@ -10,9 +10,9 @@ Threads, and why:
 - One services thread runs each fleet's helper processes here, restarting them if they die:
   the DDS discovery server when the fleet names this agent its host, the Zenoh bridge when the
   fleet's transport is `zenoh` (fleet.dataplane).  They too die with the agent.
-- One publishing thread puts each served fleet's status (and the world's state, where it runs
-  here) every PUBLISH_PERIOD, but only while someone subscribes (a `fleet dashboard`): nobody
-  listening, nothing sent.
+- Nothing is published: status and world state are answered when asked.  (Publishers declared
+  on the keys of this session's own queryables made the session stall when the router's links
+  changed; watchers such as `fleet dashboard` ask often instead.)
 - The main thread owns the Zenoh session: it opens it (retrying while no router answers; robots
   keep running meanwhile) and closes it on shutdown.  Zenoh reconnects a client by itself when
   the router comes back, re-declaring queryables and liveliness tokens.  Every few seconds it
@@ -53,7 +53,6 @@ log = logging.getLogger("fleet.agent")
 PARAM_TIMEOUT = 30.0  # a loaded host needs seconds for rclpy start-up and discovery
 DESIRED_POLL = 3.0  # how often to ask the router for desired states newer than ours
 DESIRED_TIMEOUT = 5.0
-PUBLISH_PERIOD = 0.25  # s between status puts while someone subscribes (the world reports as often)
 
 
 class Agent:
@@ -88,12 +87,11 @@ class Agent:
             started_at=time.time(),
             address=address or address_towards(connect),
         )
-        self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens, _publishers
+        self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens
         self._fleets: dict[str, FleetState] = {}
         self._units: dict[tuple[str, str], Unit] = {}
         self._reconciled: dict[str, int] = {}
         self._tokens: dict[str, Any] = {}
-        self._publishers: dict[str, tuple[Any, Any]] = {}  # fleet -> (status, world) publishers
         # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
         self._services: dict[tuple[str, str], Any] = {}
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
@@ -121,8 +119,6 @@ class Agent:
         worker.start()
         services = threading.Thread(target=self._services_loop, name="fleet-agent-services")
         services.start()
-        publisher = threading.Thread(target=self._publish_loop, name="fleet-agent-publish")
-        publisher.start()
         try:
             self._session = open_client_retrying(self.connect, self.zenoh_config, AGENT_LEASE_MS, self.stop_event)
             if self._session is not None:
@@ -136,12 +132,10 @@ class Agent:
                     self.stop_event.wait(0.5)  # a timed wait lets signal handlers run
         finally:
             self.stop_event.set()
-            publisher.join()
             session, self._session = self._session, None
             if session is not None:
                 with self._lock:
                     self._tokens.clear()
-                    self._publishers.clear()
                 session.close()
             self._requests.shutdown(wait=True, cancel_futures=True)
             self._slow_requests.shutdown(wait=True, cancel_futures=True)
@@ -197,8 +191,7 @@ class Agent:
             query.drop()  # sends the final reply now, not whenever the object is collected
 
     def _update_tokens(self) -> None:
-        """A liveliness token per served fleet (one with robots), so `fleet status` sees us, and
-        the publishers of its status and world."""
+        """A liveliness token per served fleet (one with robots), so `fleet status` sees us."""
         session = self._session
         if session is None:
             return
@@ -206,32 +199,8 @@ class Agent:
             served = {fleet for fleet, state in self._fleets.items() if state.request.bundles}
             for fleet in set(self._tokens) - served:
                 self._tokens.pop(fleet).undeclare()
-                for publisher in self._publishers.pop(fleet, ()):
-                    publisher.undeclare()
             for fleet in served - set(self._tokens):
                 self._tokens[fleet] = session.liveliness().declare_token(p.alive_key(fleet, self.name))
-                self._publishers[fleet] = (
-                    session.declare_publisher(p.agent_status_key(fleet, self.name)),
-                    session.declare_publisher(p.world_key(fleet, self.name)),
-                )
-
-    def _publish_loop(self) -> None:
-        """Put each served fleet's status, and its world's state where the world runs here, while
-        someone subscribes to them (Zenoh's matching status): a dashboard sees every change
-        within PUBLISH_PERIOD without asking, and a fleet nobody watches costs nothing."""
-        while not self.stop_event.wait(PUBLISH_PERIOD):
-            with self._lock:
-                publishers = list(self._publishers.items())
-            for fleet, (status, world) in publishers:
-                try:
-                    if status.matching_status.matching:
-                        status.put(p.encode(self.status(fleet)))
-                    if world.matching_status.matching:
-                        world.put(p.encode(self.world_reply(fleet)))
-                except p.ProtocolError:
-                    pass  # no world here, or it has not reported yet
-                except Exception as error:  # undeclared meanwhile, or no router: the next round tries again
-                    log.debug("cannot publish the state of fleet %s: %s", fleet, error)
 
     # -- apply ------------------------------------------------------------------------------------
 

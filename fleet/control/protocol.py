@@ -11,9 +11,7 @@ Key space (every key lives under the fleet's name, so several fleets share one r
     fleet/<fleet>/agent/<agent>/logs       queryable  LogsRequest  -> LogsReply
     fleet/<fleet>/agent/<agent>/param      queryable  ParamRequest -> ParamReply
     fleet/<fleet>/agent/<agent>/world      queryable  WorldRequest -> WorldReply (the agent running the world)
-                                           put        WorldReply, every 0.25 s while subscribed (dashboard)
     fleet/<fleet>/status/agent/<agent>     queryable  (no payload) -> StatusReply
-                                           put        StatusReply, every 0.25 s while subscribed (dashboard)
     fleet/<fleet>/status/registry          queryable  (router)     -> RegistryReply
     fleet/<fleet>/plan                     put        PlanRecord (deploy -> router registry)
     fleet/<fleet>/desired/<agent>          put        ApplyRequest (deploy/down -> router registry)
