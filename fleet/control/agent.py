@@ -53,6 +53,10 @@ log = logging.getLogger("fleet.agent")
 PARAM_TIMEOUT = 30.0  # a loaded host needs seconds for rclpy start-up and discovery
 DESIRED_POLL = 3.0  # how often to ask the router for desired states newer than ours
 DESIRED_TIMEOUT = 5.0
+# Desired-state queries in a row that time out while the router is connected: the session has
+# stalled (seen after a link to the router dropped and came back: Zenoh reconnected, but queries
+# to and from this session went unanswered), so it is replaced by a new one.
+STALLED_FETCHES = 2
 
 
 class Agent:
@@ -124,11 +128,14 @@ class Agent:
             if self._session is not None:
                 self._declare(self._session)
                 log.info("agent %s serving on %s", self.name, ", ".join(self.connect))
-                next_fetch = 0.0
+                next_fetch, stalled = 0.0, 0
                 while not self.stop_event.is_set():
                     if time.monotonic() >= next_fetch:
-                        self._fetch_desired(self._session)
+                        stalled = 0 if self._fetch_desired(self._session) else stalled + 1
                         next_fetch = time.monotonic() + DESIRED_POLL
+                        if stalled >= STALLED_FETCHES:
+                            self._reopen_session()
+                            stalled = 0
                     self.stop_event.wait(0.5)  # a timed wait lets signal handlers run
         finally:
             self.stop_event.set()
@@ -151,6 +158,22 @@ class Agent:
             self._fleets = fleets
         for fleet in fleets:
             self._work.put(fleet)
+
+    def _reopen_session(self) -> None:
+        """Close the stalled session and serve on a new one (robots keep running throughout)."""
+        log.warning("the Zenoh session stopped answering: opening a new one")
+        session, self._session = self._session, None
+        with self._lock:
+            self._tokens.clear()
+        if session is not None:
+            try:
+                session.close()
+            except Exception as error:  # a broken session may not close cleanly: drop it anyway
+                log.warning("closing the stalled session: %s", error)
+        self._session = open_client_retrying(self.connect, self.zenoh_config, AGENT_LEASE_MS, self.stop_event)
+        if self._session is not None:
+            self._declare(self._session)
+            log.info("agent %s serving again on %s", self.name, ", ".join(self.connect))
 
     def _declare(self, session) -> None:
         # One queryable per operation, with a wildcard fleet chunk: we serve every fleet sent to us.
@@ -219,9 +242,10 @@ class Agent:
             raise p.ProtocolError(f"apply for fleet {request.fleet!r} sent on {key}", "invalid")
         return request
 
-    def _fetch_desired(self, session) -> None:
+    def _fetch_desired(self, session) -> bool:
         """Apply what the router stored for us if it is newer than what we hold (a deploy or a
-        `fleet down` made while we were away).  Bad data is logged and leaves our state alone."""
+        `fleet down` made while we were away).  Bad data is logged and leaves our state alone.
+        False when the query timed out (the router is connected but nothing came back)."""
         import zenoh
 
         with self._lock:
@@ -234,9 +258,12 @@ class Agent:
                 consolidation=zenoh.ConsolidationMode.NONE,
                 timeout=DESIRED_TIMEOUT,
             )
+            answered = True
             for reply in replies:
                 if reply.ok is None:
-                    log.warning("router refused the desired-state query: %s", reply.err.payload.to_bytes()[:200])
+                    error = reply.err.payload.to_bytes()[:200]
+                    log.warning("router refused the desired-state query: %s", error)
+                    answered = answered and error != b"Timeout"
                     continue
                 try:
                     request = self._check_apply(reply.ok.payload.to_bytes(), reply.ok.key_expr)
@@ -256,6 +283,9 @@ class Agent:
             log.debug("cannot fetch desired states: %s", error)
         except Exception:  # never let this take the agent down: the next round tries again
             log.exception("fetching desired states failed")
+        else:  # without a router connected a timeout says nothing about the session
+            return answered or not list(session.info.routers_zid())
+        return True
 
     def apply(self, request: p.ApplyRequest) -> p.ApplyReply:
         """Accept (persist, then schedule) or refuse one desired state; serialised by the lock."""
