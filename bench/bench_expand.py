@@ -23,7 +23,9 @@ from fleet.expand import expand_fleet
 from fleet.spec import load_spec
 
 
-def make_spec(robots: int, path: Path) -> None:
+def make_spec(robots: int, path: Path, agents: int = 10, simulated_every: int = 1) -> None:
+    """A fleet of `robots` robots over `agents` agents, with a world of 20 obstacles hosting every
+    `simulated_every`-th robot (the others are real robots): a third have their own parameters."""
     spec = {
         "fleet": "bench",
         "world": {
@@ -31,13 +33,14 @@ def make_spec(robots: int, path: Path) -> None:
                 {"name": f"o{i}", "type": "box", "position": [i * 3.0, -5.0], "size": [1, 1, 1]} for i in range(20)
             ]
         },
-        "agents": {f"host{i}": {} for i in range(10)},
+        "agents": {f"host{i}": {} for i in range(agents)},
         "defaults": {"agent": "host0", "parameters": {"controller": {"max_speed": 0.6}}},
         "robots": [
             {
                 "name": f"robot{i}",
-                "agent": f"host{i % 10}",
+                "agent": f"host{i % agents}",
                 "pose": {"x": (i % 40) * 1.0, "y": (i // 40) * 1.0},
+                **({} if i % simulated_every == 0 else {"simulated": False}),
                 "parameters": {"controller": {"waypoints": [1.0, 0.0, 1.0, 1.0]}} if i % 3 == 0 else {},
             }
             for i in range(robots)

@@ -59,10 +59,9 @@ def _client(connect: str | None, zenoh_config: Path | None):
 
 def _expand(spec: Path, sets: list[str]):
     """Validate and expand first: a bad spec raises here, before anything is sent."""
-    from fleet.expand import expand_fleet
-    from fleet.spec import load_spec
+    from fleet.cli.render_cmd import load_and_expand
 
-    return expand_fleet(load_spec(spec), sets)
+    return load_and_expand(spec, sets)
 
 
 def _logging() -> None:
@@ -630,14 +629,13 @@ def logs(
 
 def _parse_value(text: str):
     """VALUE as YAML, like `ros2 param set`: 0.8, true, [1.0, 2.0], hello."""
-    import yaml
-
-    from fleet.errors import FleetError
+    from fleet.errors import FleetError, Location
+    from fleet.spec.yaml_source import parse_scalar
 
     try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise FleetError(f"cannot parse value {text!r}: {error}") from None
+        return parse_scalar(text)
+    except ValueError as error:
+        raise FleetError(f"cannot parse value: {error}", Location(f"VALUE {text}")) from None
 
 
 def _param(robot: str, node: str, name: str, op: str, value, fleet, connect, zenoh_config):
@@ -670,7 +668,9 @@ def param_get(
 
     reply = _param(robot, node, name, "get", None, fleet, connect, zenoh_config)
     if not reply.ok:
-        typer.echo(f"fleet: error: {reply.reason}", err=True)
+        from fleet.errors import error_line
+
+        typer.echo(error_line(reply.reason), err=True)
         raise typer.Exit(1)
     typer.echo(json.dumps(reply.value))
 
@@ -687,6 +687,8 @@ def param_set(
     """Set a node's parameter live; kept across restarts until the robot's spec changes."""
     reply = _param(robot, node, name, "set", _parse_value(value), fleet, connect, zenoh_config)
     if not reply.ok:
-        typer.echo(f"fleet: error: {robot}/{node} refused {name}={value}: {reply.reason}", err=True)
+        from fleet.errors import error_line
+
+        typer.echo(error_line(f"{robot}/{node} refused {name}={value}: {reply.reason}"), err=True)
         raise typer.Exit(1)
     typer.echo(f"{robot}/{node}: {name} = {reply.value!r} (recorded on the agent)")

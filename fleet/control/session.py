@@ -15,7 +15,7 @@ import os
 import time
 from pathlib import Path
 
-from fleet.errors import ControlError, FleetError
+from fleet.errors import ControlError, FleetError, Location
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 ENDPOINT_VARIABLE = "FLEET_CONNECT"
@@ -34,7 +34,7 @@ def config_file(explicit: str | Path | None) -> Path | None:
         return None
     path = Path(value).expanduser()
     if not path.is_file():
-        raise FleetError(f"Zenoh config file {path} does not exist")
+        raise FleetError("no such Zenoh config file", Location(path))
     return path
 
 
@@ -46,7 +46,7 @@ def _base_config(user_config: Path | None):
     try:
         return zenoh.Config.from_file(str(user_config))
     except Exception as error:  # zenoh raises ZError with the parser's message
-        raise FleetError(f"{user_config}: invalid Zenoh config: {error}") from None
+        raise FleetError(f"invalid Zenoh config: {error}", Location(user_config)) from None
 
 
 def _set_unless_user_set(config, key: str, value) -> None:

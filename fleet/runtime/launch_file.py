@@ -28,7 +28,7 @@ from typing import Any
 
 import yaml
 
-from fleet.errors import FleetError, LaunchFileError, Location
+from fleet.errors import FleetError, LaunchFileError, Location, SpecError
 from fleet.runtime import ament
 
 # ---------------------------------------------------------------------------------------------
@@ -296,6 +296,12 @@ class _Reader:
         return LaunchFileError(message, Location(self.path, line))
 
     def read(self, text: str) -> list:
+        from fleet.spec.yaml_source import safe_load
+
+        try:
+            safe_load(text, self.path)  # the limits of every fleet input first: depth, aliases, tags, numbers
+        except SpecError as problem:
+            raise LaunchFileError(f"invalid YAML: {problem.message}", problem.location) from None
         try:
             data = yaml.load(text, Loader=_LineLoader)
         except yaml.YAMLError as problem:
@@ -855,10 +861,12 @@ def _parse(
             "launch files with `ros2 launch` (--backend ros2)",
             Location(path),
         )
+    from fleet.spec.yaml_source import read_input
+
     try:
-        text = path.read_text()
-    except OSError as problem:
-        raise LaunchFileError(f"cannot read launch file: {problem.strerror}", Location(path))
+        text = read_input(path, "launch")
+    except SpecError as problem:
+        raise LaunchFileError(f"cannot read launch file: {problem.message}", problem.location) from None
     for name in launch_args:
         if not _NAME_TOKEN.fullmatch(name):
             raise LaunchFileError(f"invalid launch argument name '{name}'", Location(path))

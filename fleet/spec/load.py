@@ -12,21 +12,22 @@ from pydantic import BaseModel, ValidationError
 
 from fleet.errors import Location, SpecError
 from fleet.spec.model import FleetSpec
-from fleet.spec.names import key_name_problem, namespace_problem, ros_name_problem
-from fleet.spec.params import flatten, value_problem
-from fleet.spec.yaml_source import SourceMap, load_yaml
+from fleet.spec.names import (
+    RESERVED_UNIT_NAMES,
+    WORLD_TEMPLATE,
+    key_name_problem,
+    namespace_problem,
+    ros_name_problem,
+    template_name_problem,
+)
+from fleet.spec.params import ParameterNameClash, flatten, namespace_clash, value_problem
+from fleet.spec.yaml_source import SourceMap, load_yaml, read_input
 
 
 def load_spec(path: str | Path) -> FleetSpec:
     """Read and validate the spec at `path`; raises SpecError naming file, line and problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError("no such fleet spec file", Location(path)) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise SpecError(f"cannot read fleet spec: {error}", Location(path)) from None
-    return parse_spec(text, str(path))
+    return parse_spec(read_input(path, "fleet spec"), str(path))
 
 
 def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
@@ -64,6 +65,15 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
     if any(robot.agent is None for robot in spec.robots) or (spec.world and spec.world.agent is None):
         check_agent(spec.defaults.agent, ("defaults", "agent"))
 
+    def check_template(name: str | None, path: tuple) -> None:
+        if name is None:
+            return
+        if problem := template_name_problem(name):
+            fail(f"template {problem}", path)
+        if name == WORLD_TEMPLATE:
+            fail(f"template {name!r} runs the fleet's shared world: a robot cannot use it", path)
+
+    check_template(spec.defaults.template, ("defaults", "template"))
     check_parameters(spec.defaults.parameters, ("defaults", "parameters"), source)
     check_launch_args(spec.defaults.launch_args, ("defaults", "launch_args"), source)
     namespaces: dict[str, int] = {}
@@ -72,6 +82,13 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
         here = ("robots", index)
         if problem := ros_name_problem(robot.name):
             fail(f"robot name {problem}", (*here, "name"))
+        if robot.name in RESERVED_UNIT_NAMES:
+            fail(
+                f"robot name {robot.name!r} is reserved: the fleet's shared {robot.name} runs under that name, "
+                "and the robot would overwrite its files",
+                (*here, "name"),
+            )
+        check_template(robot.template, (*here, "template"))
         if robot.name in seen:
             fail(f"duplicate robot name {robot.name!r} (first defined as robots[{seen[robot.name]}])", (*here, "name"))
         seen[robot.name] = index
@@ -110,11 +127,25 @@ def check_launch_args(arguments: dict[str, Any], path: tuple, source: SourceMap)
 
 
 def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source: SourceMap) -> None:
-    """Node names are ROS names; every (nested) parameter value is one ROS can hold."""
+    """Node names are ROS names; every (nested) parameter name is one, named once; every value is
+    one ROS can hold."""
     for node, values in parameters.items():
         if problem := ros_name_problem(node):
             raise SpecError(f"node name {problem}", source.locate((*path, node), key=True))
-        for name, (key_path, value) in flatten(values).items():
+        try:
+            flat = flatten(values)
+        except ParameterNameClash as clash:
+            raise SpecError(
+                f"parameter {node}.{clash.name} is written twice (as a dotted key and nested)",
+                source.locate((*path, node, *clash.key_path), key=True),
+            ) from None
+        for name, (key_path, value) in flat.items():
+            for key in key_path:
+                if not isinstance(key, str):
+                    raise SpecError(
+                        f"parameter name {key!r} in {node} must be text, not {type(key).__name__}",
+                        source.locate((*path, node, *key_path), key=True),
+                    )
             for token in name.split("."):
                 if problem := ros_name_problem(token):
                     raise SpecError(
@@ -122,6 +153,11 @@ def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source:
                     )
             if problem := value_problem(value):
                 raise SpecError(f"parameter {node}.{name}: {problem}", source.locate((*path, node, *key_path)))
+        if clash := namespace_clash(flat):
+            raise SpecError(
+                f"{node}.{clash[0]} is both a parameter and the namespace of {node}.{clash[1]}: ROS cannot hold both",
+                source.locate((*path, node, *flat[clash[1]][0]), key=True),
+            )
 
 
 def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:

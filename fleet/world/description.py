@@ -1,8 +1,8 @@
 """world.yaml -> frozen dataclasses, validated (pure: no pybullet, no ROS).
 
 Every problem is a WorldError (a FleetError) naming the file, line and column of the offending
-value, so `fleet world` can print one line and exit 2.  Line numbers come from composing the YAML
-into nodes first (yaml keeps the marks there) and converting the nodes ourselves.
+value, so `fleet world` can print one line and exit 2.  The YAML is read by fleet's one loader
+(fleet.spec.yaml_source: its limits, and the place of every value).
 """
 
 from __future__ import annotations
@@ -13,9 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from fleet.errors import FleetError, Location
+from fleet.errors import FleetError, Location, SpecError
+from fleet.spec.yaml_source import SourceMap, load_yaml, read_input
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 MODEL_TYPES = ("light", "husky", "racecar")
@@ -118,29 +117,25 @@ class WorldSpec:
 
 
 class _Value:
-    """A converted YAML node keeping the mark of where it was written."""
+    """A loaded YAML value, and where to ask for the place it was written (only errors ask)."""
 
-    __slots__ = ("column", "line", "value")
+    __slots__ = ("path", "places", "value")
 
-    def __init__(self, value: Any, mark) -> None:
+    def __init__(self, value: Any, path: tuple = (), places: SourceMap | None = None) -> None:
         self.value = value
-        self.line = mark.line + 1 if mark is not None else None
-        self.column = mark.column + 1 if mark is not None else None
+        self.path = path
+        self.places = places
+
+    def location(self, file: str) -> Location:
+        return self.places.locate(self.path) if self.places is not None else Location(file)
 
 
-def _convert(node: yaml.Node) -> _Value:
-    if isinstance(node, yaml.MappingNode):
-        out: dict[str, _Value] = {}
-        for key_node, value_node in node.value:
-            out[str(_SCALARS.construct_object(key_node, deep=True))] = _convert(value_node)
-        return _Value(out, node.start_mark)
-    if isinstance(node, yaml.SequenceNode):
-        return _Value([_convert(item) for item in node.value], node.start_mark)
-    # Scalars: the composer already resolved the tag (int, float, bool, null, str).
-    return _Value(_SCALARS.construct_object(node, deep=True), node.start_mark)
-
-
-_SCALARS = yaml.SafeLoader("")
+def _wrap(value: Any, path: tuple, places: SourceMap) -> _Value:
+    if isinstance(value, dict):
+        value = {str(key): _wrap(item, (*path, key), places) for key, item in value.items()}
+    elif isinstance(value, list):
+        value = [_wrap(item, (*path, index), places) for index, item in enumerate(value)]
+    return _Value(value, path, places)
 
 
 class _Reader:
@@ -156,7 +151,7 @@ class _Reader:
 
     def fail(self, node: _Value | None, message: str):
         node = node or self.node
-        raise WorldError(message, Location(self.source, node.line, node.column))
+        raise WorldError(message, node.location(self.source))
 
     def check_keys(self, allowed: set[str]) -> None:
         for key, value in self.data.items():
@@ -232,7 +227,7 @@ class _Reader:
     def sub(self, key: str) -> _Reader:
         node = self.data.get(key)
         if node is None:
-            return _Reader(self.source, _Value({}, None), f"{self.what}.{key}")
+            return _Reader(self.source, _Value({}), f"{self.what}.{key}")
         return _Reader(self.source, node, f"{self.what}.{key}")
 
     def numbers(self, key: str, count: int, default: tuple[float, ...] | None = None) -> tuple[float, ...]:
@@ -350,17 +345,18 @@ def _obstacle(reader: _Reader) -> ObstacleSpec:
 
 def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
     try:
-        root_node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        problem = getattr(error, "problem", None) or str(error)
-        raise WorldError(
-            f"invalid YAML: {problem}",
-            Location(source, mark.line + 1 if mark else None, mark.column + 1 if mark else None),
-        ) from None
-    if root_node is None:
+        data, source_map = load_yaml(text, source)  # the limits every fleet input has
+    except SpecError as error:
+        raise WorldError(f"invalid YAML: {error.message}", error.location) from None
+    if data is None:
         raise WorldError("world description is empty", Location(source))
-    root = _Reader(source, _convert(root_node), "world")
+    return world_spec(data, source_map)
+
+
+def world_spec(data: Any, places: SourceMap) -> WorldSpec:
+    """Validate world.yaml's data; `places` says where each value was written (for errors)."""
+    source = places.file
+    root = _Reader(source, _wrap(data, (), places), "world")
     root.check_keys({"fleet", "physics_rate", "real_time", "clock_rate", "obstacles", "robots"})
 
     def items(key: str) -> list[_Value]:
@@ -399,7 +395,7 @@ def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
 def load_world(path: str | Path) -> WorldSpec:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise WorldError(f"cannot read world description: {error.strerror}", Location(path)) from None
+        text = read_input(path, "world description")
+    except SpecError as error:
+        raise WorldError(error.message, error.location) from None
     return parse_world(text, str(path))
