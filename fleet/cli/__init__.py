@@ -44,14 +44,13 @@ def main(argv: list[str] | None = None) -> None:
     """
     click = _click_exceptions()
     try:
-        code = app(args=argv, standalone_mode=False)
+        code = app(args=argv, prog_name="fleet", standalone_mode=False)
     except FleetError as error:
         from fleet.cli.output import print_error
 
         print_error(error)
         sys.exit(error.exit_code)
-    except click.NoArgsIsHelpError as error:  # `fleet` alone, or a group without its command: help
-        error.show()
+    except click.NoArgsIsHelpError as error:  # `fleet` alone, or a group without its command: the help is printed
         sys.exit(error.exit_code)
     except click.ClickException as error:
         from fleet.cli.output import print_error

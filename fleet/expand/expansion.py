@@ -88,9 +88,15 @@ class Expansion:
 def template_set_for(spec: FleetSpec) -> TemplateSet:
     directories = []
     if spec.templates is not None:
-        directories.append((Path(spec.source_file).parent / spec.templates).resolve())
-        if not directories[0].is_dir():
-            raise SpecError(f"templates directory {directories[0]} does not exist", Location(spec.source_file))
+        try:
+            directories.append((Path(spec.source_file).parent / spec.templates).resolve())
+            found = directories[0].is_dir()
+        except (OSError, ValueError):  # a NUL in the name, a loop of links
+            found = False
+        if not found:
+            raise SpecError(
+                f"templates directory {spec.templates} does not exist", _spec_location(spec, ("templates",))
+            )
     return TemplateSet(directories + builtin_template_dirs())
 
 

@@ -37,7 +37,7 @@ def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
     try:
         spec = FleetSpec.model_validate(data)
     except ValidationError as error:
-        raise _first_problem(error, source) from None
+        raise _first_problem(error, source, data) from None
     spec = spec.model_copy(update={"source_file": file})
     spec._source_map = source
     check_spec(spec, source)
@@ -160,12 +160,12 @@ def check_parameters(parameters: dict[str, dict[str, Any]], path: tuple, source:
             )
 
 
-def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
+def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> SpecError:
     """Turn pydantic's first error into one line with the place it refers to."""
     # A misspelt key also makes the key it should have been "missing": report the typo first.
     problems = error.errors()
     problem = next((p for p in problems if p["type"] == "extra_forbidden"), problems[0])
-    loc = tuple(part for part in problem["loc"] if not _is_pydantic_branch(part))
+    loc = _data_path(problem["loc"], data)
     kind = problem["type"]
     where = ".".join(str(p) if not isinstance(p, int) else f"[{p}]" for p in loc).replace(".[", "[")
     if kind == "extra_forbidden":
@@ -190,9 +190,27 @@ def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
     return SpecError(f"{where}: {message}" if where else message, source.locate(loc))
 
 
-def _is_pydantic_branch(part: Any) -> bool:
-    # Unions and tagged types add loc parts like 'function-after[...]' or 'literal[...]'.
-    return isinstance(part, str) and ("[" in part or part in ("tuple",))
+def _data_path(loc: tuple, data: Any) -> tuple:
+    """The path in the document of pydantic's error location: the keys and indexes found in the
+    data, without the parts pydantic adds for union branches and validators (`int`,
+    `function-after[...]`), which a user's key may look like."""
+    path = []
+    for part in loc:
+        found = (isinstance(data, dict) and part in data) or (
+            isinstance(data, (list, tuple)) and isinstance(part, int) and 0 <= part < len(data)
+        )
+        if found:
+            data = data[part]
+        elif isinstance(data, dict) and isinstance(part, str) and "[" not in part and part not in _BRANCHES:
+            data = None  # a key the data lacks: a missing one, reported in its parent
+        else:
+            continue
+        path.append(part)
+    return tuple(path)
+
+
+# Union branch names pydantic puts in error locations (the types of a launch argument's value).
+_BRANCHES = {"bool", "int", "float", "str", "tuple", "list", "dict", "none"}
 
 
 def _parent(loc: tuple) -> str:

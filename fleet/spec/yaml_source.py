@@ -194,6 +194,8 @@ class _Composer:
                 if self.values > MAX_VALUES:
                     raise self._too_many(event, alias=False)
                 value, size = self._scalar(event, loader), 1
+                if event.anchor is not None:
+                    self.anchors[event.anchor] = (value, size)
                 if record:
                     self._record(stack, event)
             elif kind is yaml.MappingStartEvent or kind is yaml.SequenceStartEvent:
