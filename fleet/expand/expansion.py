@@ -111,16 +111,14 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
     warnings: list[str] = []
-    checked: set[int] = set()  # shared layers whose checks ran: a robot that changed none is the same
+    checked: set[int] = set()  # shared layers checked with a robot: the next ones check only what they changed
     for plan in robots:
         layers = plan.parameters
-        if layers.same_as_origin() and id(layers.origin) in checked:
-            continue
-        check_type_stable(layers, plan.name)
-        check_names_disjoint(layers, plan.name)
-        warnings += layers.unknown_to_template(layers.template_defaults)
-        if layers.same_as_origin():
-            checked.add(id(layers.origin))
+        nodes = layers.changed if id(layers.origin) in checked else None
+        check_type_stable(layers, plan.name, nodes)
+        check_names_disjoint(layers, plan.name, nodes)
+        warnings += layers.unknown_to_template(layers.template_defaults, nodes)
+        checked.add(id(layers.origin))
     sections: dict[tuple, str] = {}
     bundles = [_robot_bundle(spec, plan, sections) for plan in robots]
     if spec.world is not None:

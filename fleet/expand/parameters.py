@@ -9,7 +9,7 @@ rcl (in Jazzy the last matching key applied wins, not the most specific).
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -115,10 +115,16 @@ class ParameterLayers:
     def explain(self, node: str, name: str) -> list[Setting]:
         return list(self.history.get((node, name), []))
 
-    def unknown_to_template(self, known: dict[str, dict[str, Any]]) -> list[str]:
+    def of_nodes(self, nodes: Collection[str] | None = None) -> Iterable[tuple[tuple[str, str], list[Setting]]]:
+        """The history of every node's parameters, or only of `nodes`' ones."""
+        if nodes is None:
+            return self.history.items()
+        return ((key, settings) for key, settings in self.history.items() if key[0] in nodes)
+
+    def unknown_to_template(self, known: dict[str, dict[str, Any]], nodes: Collection[str] | None = None) -> list[str]:
         """Warnings for parameters the template's defaults do not know (likely typos)."""
         warnings = []
-        for (node, name), settings in self.history.items():
+        for (node, name), settings in self.of_nodes(nodes):
             declared = known.get(node, {})
             if declared and name not in declared:
                 hint = difflib.get_close_matches(name, list(declared), n=1)
@@ -129,9 +135,9 @@ class ParameterLayers:
         return warnings
 
 
-def check_type_stable(layers: ParameterLayers, robot: str) -> None:
+def check_type_stable(layers: ParameterLayers, robot: str, nodes: Collection[str] | None = None) -> None:
     """A layer may change a value, not its type: the node declares one type per parameter."""
-    for (node, name), settings in layers.history.items():
+    for (node, name), settings in layers.of_nodes(nodes):
         first = settings[0]
         for later in settings[1:]:
             if _type_name(later.value) != _type_name(first.value):
@@ -142,10 +148,10 @@ def check_type_stable(layers: ParameterLayers, robot: str) -> None:
                 )
 
 
-def check_names_disjoint(layers: ParameterLayers, robot: str) -> None:
+def check_names_disjoint(layers: ParameterLayers, robot: str, nodes: Collection[str] | None = None) -> None:
     """No parameter is also the namespace of another (`pid` and `pid.kp`), across all layers."""
     names_by_node: dict[str, list[str]] = {}
-    for node, name in layers.history:
+    for (node, name), _ in layers.of_nodes(nodes):
         names_by_node.setdefault(node, []).append(name)
     for node, names in names_by_node.items():
         clash = namespace_clash(names)
