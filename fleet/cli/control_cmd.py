@@ -117,14 +117,18 @@ def agent(
     """Run an agent (foreground): receives desired state, runs the robots, reports status."""
     from fleet.control.agent import Agent
     from fleet.control.daemon import state_dir as default_state_dir
+    from fleet.control.protocol import address_problem, key_name_problem
+    from fleet.errors import FleetError, Location
 
+    if problem := key_name_problem(name):
+        raise FleetError(f"agent name {problem}", Location("--name"))
+    if address is not None and (problem := address_problem(address)):
+        raise FleetError(problem, Location("--address"))
     _logging()
     directory = state_dir or default_state_dir() / "agents" / name
     try:
         daemon = Agent(name, _endpoints(connect), directory, _zenoh_config(zenoh_config), address)
     except ValueError as error:
-        from fleet.errors import FleetError
-
         raise FleetError(str(error)) from None
     daemon.stop_event = _stop_on_signals()
     daemon.run()

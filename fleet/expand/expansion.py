@@ -101,6 +101,7 @@ def template_set_for(spec: FleetSpec) -> TemplateSet:
 
 
 def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Expansion:
+    _check_units_per_agent(spec)
     templates = template_set_for(spec)
     overrides = [parse_override(text) for text in sets]
     shared_layers: dict[tuple, ParameterLayers] = {}  # per template and node set
@@ -450,24 +451,36 @@ def _check_files(spec: FleetSpec, bundle: Bundle) -> None:
 
 
 def _check_deliverable(spec: FleetSpec, bundles: list[Bundle]) -> None:
-    """Every bundle, and every agent's share of them, is one the agents accept (fleet.control.protocol)."""
+    """Every bundle, and every agent's share of them, is small enough for the agents (fleet.control.protocol)."""
     by_agent: dict[str, list[Bundle]] = {}
     for bundle in bundles:
         if bundle.kind == "robot":
             _check_files(spec, bundle)
         by_agent.setdefault(bundle.agent, []).append(bundle)
     for agent, group in by_agent.items():
-        if len(group) > MAX_BUNDLES:
-            raise SpecError(
-                f"agent {agent} would run {len(group)} units; an agent runs at most {MAX_BUNDLES}: "
-                "spread the robots over more agents",
-                _spec_location(spec, ("agents", agent)),
-            )
         size = apply_size_bound(bundle.files for bundle in group)
         if size > MAX_MESSAGE_BYTES:
             raise SpecError(
                 f"agent {agent}'s {len(group)} units make a deploy message of up to {size / 2**20:.1f} MiB; "
                 f"an agent accepts {MAX_MESSAGE_BYTES / 2**20:.0f} MiB: spread the robots over more agents",
+                _spec_location(spec, ("agents", agent)),
+            )
+
+
+def _check_units_per_agent(spec: FleetSpec) -> None:
+    """An agent runs at most MAX_BUNDLES units: known before anything is expanded."""
+    units: dict[str, int] = {}
+    for robot in spec.robots:
+        agent = robot.agent or spec.defaults.agent
+        units[agent] = units.get(agent, 0) + 1
+    if spec.world is not None:
+        agent = spec.world.agent or spec.defaults.agent
+        units[agent] = units.get(agent, 0) + 1
+    for agent, count in units.items():
+        if count > MAX_BUNDLES:
+            raise SpecError(
+                f"agent {agent} would run {count} units; an agent runs at most {MAX_BUNDLES}: "
+                "spread the robots over more agents",
                 _spec_location(spec, ("agents", agent)),
             )
 

@@ -75,17 +75,19 @@ def test_robots_that_are_not_simulated_are_not_placed():
 
 
 def test_a_world_description_an_agent_would_refuse_is_refused():
-    robots = [f"{{name: r{i}, pose: {{x: {i % 100}, y: {i // 100}}}}}" for i in range(3500)]
+    robots = [f"{{name: r{i}, agent: a{i % 4}, pose: {{x: {i % 100}, y: {i // 100}}}}}" for i in range(3500)]
+    agents = "agents: {a0: {}, a1: {}, a2: {}, a3: {}}\ndefaults: {agent: a0}\n"
     with pytest.raises(SpecError, match=r"f.yaml:2:\d+: an agent would refuse the world's files: file 'world.yaml'"):
-        expand_fleet(parse_spec(spec_text(robots), "f.yaml"))
+        expand_fleet(parse_spec(spec_text(robots, agents=agents), "f.yaml"))
 
 
 def test_more_robots_on_an_agent_than_it_accepts_are_refused():
-    robots = [f"{{name: r{i}}}" for i in range(protocol.MAX_BUNDLES + 1)]
+    robots = [f"{{name: r{i}, pose: {{x: {i}}}}}" for i in range(protocol.MAX_BUNDLES)]  # and the world: one more
     with pytest.raises(
         SpecError, match=f"agent local would run {protocol.MAX_BUNDLES + 1} units; an agent runs at most"
     ):
-        expand_fleet(parse_spec(spec_text(robots, world=""), "f.yaml"))
+        expand_fleet(parse_spec(spec_text(robots), "f.yaml"))
+    expand_fleet(parse_spec(spec_text(robots[1:]), "f.yaml"))
 
 
 def test_a_deploy_message_an_agent_would_refuse_is_refused():
