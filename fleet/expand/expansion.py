@@ -458,7 +458,7 @@ def _check_deliverable(spec: FleetSpec, bundles: list[Bundle]) -> None:
             _check_files(spec, bundle)
         by_agent.setdefault(bundle.agent, []).append(bundle)
     for agent, group in by_agent.items():
-        size = apply_size_bound(bundle.files for bundle in group)
+        size = apply_size_bound(bundle.json_size for bundle in group)
         if size > MAX_MESSAGE_BYTES:
             raise SpecError(
                 f"agent {agent}'s {len(group)} units make a deploy message of up to {size / 2**20:.1f} MiB; "

@@ -37,7 +37,7 @@ FAST_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
 MAX_TEXT_CHARS = 16 * 1024 * 1024
 MAX_DEPTH = 64  # nested collections; a fleet spec needs about ten
-MAX_VALUES = 2_000_000  # values of a document with its aliases expanded; a 20,000-robot spec has 400,000
+MAX_VALUES = 2_000_000  # values of a document with its aliases expanded; the 20,000-robot benchmark spec has 350,000
 MAX_NUMBER_CHARS = 100  # longer numbers are refused before Python converts them
 INT64 = (-(2**63), 2**63 - 1)
 

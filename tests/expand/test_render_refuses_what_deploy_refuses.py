@@ -111,4 +111,4 @@ def test_the_size_bound_is_above_the_real_message():
         domain_id=0,
         bundles=[protocol.BundleMessage.from_bundle(bundle) for bundle in expansion.bundles],
     )
-    assert len(protocol.encode(request)) <= protocol.apply_size_bound(bundle.files for bundle in expansion.bundles)
+    assert len(protocol.encode(request)) <= protocol.apply_size_bound(bundle.json_size for bundle in expansion.bundles)
