@@ -103,10 +103,12 @@ def test_a_deploy_message_an_agent_would_refuse_is_refused():
 def test_the_size_bound_is_above_the_real_message():
     """apply_size_bound never says less than the ApplyRequest really is."""
     robots = ['{name: a, parameters: {controller: {note: "é\\u2028\\n\\"x"}}}', "{name: b, pose: {x: 2}}"]
-    expansion = expand_fleet(parse_spec(spec_text(robots), "f.yaml"))
+    robots.append("{name: " + "r" * 63 + ", pose: {x: 4}, agent: " + "h" * 63 + "}")  # the longest names
+    agents = "agents: {local: {}, " + "h" * 63 + ": {}}\n"
+    expansion = expand_fleet(parse_spec("fleet: " + "f" * 63 + "\n" + spec_text(robots, agents=agents)[12:], "f.yaml"))
     request = protocol.ApplyRequest(
-        fleet="demo",
-        agent="local",
+        fleet="f" * 63,
+        agent="h" * 63,
         generation=1,
         domain_id=0,
         bundles=[protocol.BundleMessage.from_bundle(bundle) for bundle in expansion.bundles],
