@@ -16,6 +16,7 @@ BENCH = Path(__file__).resolve().parent
 BENCHMARKS = {
     "cli": ["bench_cli.py"],
     "expand": ["bench_expand.py"],
+    "render_scaling": ["bench_expand.py", "--scaling"],
     "world": ["bench_world.py"],
     "isolation": ["bench_isolation.py"],
     "control": ["bench_control.py"],

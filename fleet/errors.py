@@ -1,16 +1,59 @@
 """User-facing errors.
 
 Every error a user can fix (bad spec, bad template, bad --set, bad launch file) is a FleetError
-carrying where it happened.  The CLI prints it as one line, `file:line:col: message`, and exits 2.
+carrying where it happened.  The CLI prints it as one line, `fleet: error: file:line:col: message`,
+and exits 2.  The line is made here and nowhere else (`FleetError.line`): whatever a message
+quotes from the input, it stays one line of at most MAX_LINE characters with no control
+characters, so a hostile spec can neither forge a second error line nor drive the terminal.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 EXIT_USAGE = 2  # bad input: nothing was done
 EXIT_FAILURE = 1  # the command ran but the fleet is not in the desired state
+
+PREFIX = "fleet: error: "
+MAX_LINE = 300  # characters of a whole error line, prefix included
+COMMAND_LINE = "<command line>"  # the place of an error in the command's own arguments
+_LONG_WORD = re.compile(r"\S{41,}")
+_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def printable(text: str) -> str:
+    """`text` with every non-printable character (newlines, ESC, NUL, bidi controls, ...) escaped."""
+    if text.isprintable():
+        return text
+    return "".join(char if char.isprintable() else _escape(char) for char in text)
+
+
+def _escape(char: str) -> str:
+    if char in _ESCAPES:
+        return _ESCAPES[char]
+    code = ord(char)
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+
+
+def one_line(text: str, limit: int = MAX_LINE) -> str:
+    """`text` made printable and at most `limit` characters: the longest values are shortened
+    first, keeping their two ends; if that is not enough, the middle of the text goes."""
+    text = printable(text)
+    if len(text) <= limit:
+        return text
+    for word in sorted(set(_LONG_WORD.findall(text)), key=len, reverse=True):
+        text = text.replace(word, f"{word[:18]}...{word[-18:]}")
+        if len(text) <= limit:
+            return text
+    head = (limit - 5) * 2 // 3
+    return f"{text[:head]} ... {text[len(text) - (limit - 5 - head) :]}"
+
+
+def error_line(problem: str) -> str:
+    """`fleet: error: <problem>` as one printable line of at most MAX_LINE characters."""
+    return PREFIX + one_line(problem, MAX_LINE - len(PREFIX))
 
 
 @dataclass
@@ -39,9 +82,17 @@ class FleetError(Exception):
         self.location = location
 
     def __str__(self) -> str:
+        limit = MAX_LINE - len(PREFIX)
         if self.location is None:
-            return self.message
-        return f"{self.location}: {self.message}"
+            return one_line(self.message, limit)
+        where = one_line(str(self.location), limit // 2)  # the place stays readable, whatever the message
+        return f"{where}: {one_line(self.message, limit - len(where) - 2)}"
+
+    def line(self) -> str:
+        """The one line the CLI prints.  Bad input without a file is in the command's arguments."""
+        if self.location is None and self.exit_code == EXIT_USAGE:
+            return error_line(f"{COMMAND_LINE}: {self.message}")
+        return PREFIX + str(self)
 
 
 class SpecError(FleetError):

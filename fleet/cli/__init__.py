@@ -12,7 +12,7 @@ import sys
 import typer
 
 from fleet.cli import certs_cmd, control_cmd, dashboard_cmd, render_cmd, run_cmd, world_cmd
-from fleet.errors import FleetError
+from fleet.errors import COMMAND_LINE, EXIT_FAILURE, EXIT_USAGE, FleetError, Location
 
 app = typer.Typer(
     name="fleet",
@@ -39,14 +39,37 @@ for _module in (render_cmd, run_cmd, control_cmd, world_cmd, certs_cmd, dashboar
 def main(argv: list[str] | None = None) -> None:
     """Entry point: user errors become one line on stderr and their exit code (2 for bad input).
 
-    Click (inside typer) handles usage errors itself, with exit code 2.
+    Usage errors of the command line itself (unknown option, missing argument, a value of the
+    wrong kind) too: click would draw a box of several lines, so it is asked to raise instead.
     """
+    click = _click_exceptions()
     try:
-        app(args=argv)
+        code = app(args=argv, prog_name="fleet", standalone_mode=False)
     except FleetError as error:
         from fleet.cli.output import print_error
 
         print_error(error)
         sys.exit(error.exit_code)
+    except click.NoArgsIsHelpError as error:  # `fleet` alone, or a group without its command: the help is printed
+        sys.exit(error.exit_code)
+    except click.ClickException as error:
+        from fleet.cli.output import print_error
+
+        command = error.ctx.command_path if getattr(error, "ctx", None) else "fleet"
+        print_error(FleetError(f"{command}: {error.format_message()}", Location(COMMAND_LINE)))
+        sys.exit(EXIT_USAGE)
+    except (click.Abort, EOFError):
+        sys.exit(EXIT_FAILURE)
     except KeyboardInterrupt:
         sys.exit(130)
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+def _click_exceptions():
+    """The click exceptions module typer uses (a vendored copy in recent typer versions)."""
+    import importlib
+
+    import typer.core
+
+    click = getattr(typer.core, "_click", None) or importlib.import_module("click")
+    return click.exceptions

@@ -65,10 +65,9 @@ def _client(connect: str | None, zenoh_config: Path | None) -> ControlClient:
 
 def _expand(spec: Path, sets: list[str]):
     """Validate and expand first: a bad spec raises here, before anything is sent."""
-    from fleet.expand import expand_fleet
-    from fleet.spec import load_spec
+    from fleet.cli.render_cmd import load_and_expand
 
-    return expand_fleet(load_spec(spec), sets)
+    return load_and_expand(spec, sets)
 
 
 def _logging() -> None:
@@ -124,14 +123,18 @@ def agent(
     """Run an agent (foreground): receives desired state, runs the robots, reports status."""
     from fleet.control.agent import Agent
     from fleet.control.daemon import state_dir as default_state_dir
+    from fleet.control.protocol import address_problem, key_name_problem
+    from fleet.errors import FleetError, Location
 
+    if problem := key_name_problem(name):
+        raise FleetError(f"agent name {problem}", Location("--name"))
+    if address is not None and (problem := address_problem(address)):
+        raise FleetError(problem, Location("--address"))
     _logging()
     directory = state_dir or default_state_dir() / "agents" / name
     try:
         daemon = Agent(name, _endpoints(connect), directory, _zenoh_config(zenoh_config), address)
     except ValueError as error:
-        from fleet.errors import FleetError
-
         raise FleetError(str(error)) from None
     daemon.stop_event = _stop_on_signals()
     daemon.run()
@@ -638,14 +641,13 @@ def logs(
 
 def _parse_value(text: str):
     """VALUE as YAML, like `ros2 param set`: 0.8, true, [1.0, 2.0], hello."""
-    import yaml
-
-    from fleet.errors import FleetError
+    from fleet.errors import FleetError, Location
+    from fleet.spec.yaml_source import parse_scalar
 
     try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise FleetError(f"cannot parse value {text!r}: {error}") from None
+        return parse_scalar(text)
+    except ValueError as error:
+        raise FleetError(f"cannot parse value: {error}", Location(f"VALUE {text}")) from None
 
 
 def _param(robot: str, node: str, name: str, op: Literal["get", "set"], value, fleet, connect, zenoh_config):
@@ -678,7 +680,9 @@ def param_get(
 
     reply = _param(robot, node, name, "get", None, fleet, connect, zenoh_config)
     if not reply.ok:
-        typer.echo(f"fleet: error: {reply.reason}", err=True)
+        from fleet.errors import error_line
+
+        typer.echo(error_line(reply.reason), err=True)
         raise typer.Exit(1)
     typer.echo(json.dumps(reply.value))
 
@@ -695,6 +699,8 @@ def param_set(
     """Set a node's parameter live; kept across restarts until the robot's spec changes."""
     reply = _param(robot, node, name, "set", _parse_value(value), fleet, connect, zenoh_config)
     if not reply.ok:
-        typer.echo(f"fleet: error: {robot}/{node} refused {name}={value}: {reply.reason}", err=True)
+        from fleet.errors import error_line
+
+        typer.echo(error_line(f"{robot}/{node} refused {name}={value}: {reply.reason}"), err=True)
         raise typer.Exit(1)
     typer.echo(f"{robot}/{node}: {name} = {reply.value!r} (recorded on the agent)")

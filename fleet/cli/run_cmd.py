@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.errors import EXIT_FAILURE, FleetError
+from fleet.errors import EXIT_FAILURE, FleetError, Location
 
 
 def _launch_args(items: list[str]) -> dict[str, str]:
@@ -15,7 +15,7 @@ def _launch_args(items: list[str]) -> dict[str, str]:
     for item in items:
         name, separator, value = item.partition(":=")
         if not separator or not name:
-            raise FleetError(f"launch arguments are name:=value, got '{item}'")
+            raise FleetError("launch arguments are name:=value", Location(item))
         result[name] = value
     return result
 

@@ -29,7 +29,7 @@ import hashlib
 import ipaddress
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -178,6 +178,28 @@ def check_file_name(name: str) -> str:
     return name
 
 
+def files_problem(files: Mapping[str, str]) -> str | None:
+    """Why an agent refuses a bundle of these files (too many, too large, a name that is not one
+    plain file name), or None.  `fleet render` asks it too, so what renders is delivered."""
+    if len(files) > MAX_FILES_PER_BUNDLE:
+        return f"{len(files)} files, more than {MAX_FILES_PER_BUNDLE}"
+    for name, text in files.items():
+        try:
+            check_file_name(name)
+        except ValueError as error:
+            return str(error)
+        if len(text) * 4 > MAX_FILE_BYTES and len(text.encode()) > MAX_FILE_BYTES:  # UTF-8: at most 4 bytes a character
+            return f"file {name!r} is larger than {MAX_FILE_BYTES} bytes"
+    return None
+
+
+def apply_size_bound(bundle_json_sizes: Iterable[int]) -> int:
+    """At least the bytes of an ApplyRequest carrying bundles whose files, as JSON, have these
+    sizes (the `dds` transport: `zenoh` adds the bridge's routes): `fleet render` compares it
+    with MAX_MESSAGE_BYTES without building the message."""
+    return 4096 + sum(512 + size for size in bundle_json_sizes)  # the request's and each bundle's own fields
+
+
 class Message(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -217,12 +239,8 @@ class BundleMessage(BaseModel):
     @field_validator("files")
     @classmethod
     def _files_plain_and_small(cls, files: dict[str, str]) -> dict[str, str]:
-        if len(files) > MAX_FILES_PER_BUNDLE:
-            raise ValueError(f"{len(files)} files, more than {MAX_FILES_PER_BUNDLE}")
-        for name, text in files.items():
-            check_file_name(name)
-            if len(text.encode()) > MAX_FILE_BYTES:
-                raise ValueError(f"file {name!r} is larger than {MAX_FILE_BYTES} bytes")
+        if problem := files_problem(files):
+            raise ValueError(problem)
         return files
 
     @model_validator(mode="after")
@@ -638,6 +656,8 @@ def decode(payload: bytes | None, model: type[MessageT]) -> MessageT:
         data = json.loads(payload)
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ProtocolError(f"malformed JSON (truncated?): {error}", "malformed") from None
+    except RecursionError:
+        raise ProtocolError("JSON nested too deeply", "malformed") from None
     if not isinstance(data, dict):
         raise ProtocolError("a message must be a JSON object", "malformed")
     if data.get("v") != VERSION:

@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fleet.errors import ControlError, FleetError
+from fleet.errors import ControlError, FleetError, Location
 
 if TYPE_CHECKING:
     import threading
@@ -39,7 +39,7 @@ def config_file(explicit: str | Path | None) -> Path | None:
         return None
     path = Path(value).expanduser()
     if not path.is_file():
-        raise FleetError(f"Zenoh config file {path} does not exist")
+        raise FleetError("no such Zenoh config file", Location(path))
     return path
 
 
@@ -51,7 +51,7 @@ def _base_config(user_config: Path | None):
     try:
         config = zenoh.Config.from_file(str(user_config))
     except Exception as error:  # zenoh raises ZError with the parser's message
-        raise FleetError(f"{user_config}: invalid Zenoh config: {error}") from None
+        raise FleetError(f"invalid Zenoh config: {error}", Location(user_config)) from None
     _check_tls_files(config)
     return config
 

@@ -23,7 +23,9 @@ from fleet.control.protocol import (
     check_file_name,
     world_summary,
 )
+from fleet.errors import SpecError
 from fleet.files import write_atomic
+from fleet.spec.yaml_source import safe_load
 
 UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
 WORLD_STATUS_FILE = "world.status.json"  # written by the world next to world.yaml (templates/world.launch.yaml.j2)
@@ -230,8 +232,8 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
         if not name.endswith((".yaml", ".yml")):
             continue
         try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError:
+            data = safe_load(text, name)  # from a message: the limits of every input (alias bombs...)
+        except SpecError:
             continue
         if not isinstance(data, dict) or not any(isinstance(v, dict) and "ros__parameters" in v for v in data.values()):
             continue
@@ -245,7 +247,7 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
         if changed:
             result[name] = _dump_params(data)
     if pending and params_files:  # nodes without a section yet: add one to the first params file
-        data = yaml.safe_load(result[params_files[0]])
+        data = safe_load(result[params_files[0]], params_files[0])
         for fqn, values in pending.items():
             data[fqn] = {"ros__parameters": values}
         result[params_files[0]] = _dump_params(data)

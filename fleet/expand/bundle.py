@@ -6,6 +6,7 @@ import hashlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Literal
@@ -30,11 +31,23 @@ class Bundle:
     @property
     def digest(self) -> str:
         """Equal digests mean the running unit needs no restart (hot files are left out)."""
+        return hashlib.sha256(self._cold_json.encode()).hexdigest()
+
+    @property
+    def json_size(self) -> int:
+        """At least the characters of its files as JSON (ASCII-escaped: never fewer than sent)."""
+        hot = sum(len(name) + len(json.dumps(self.files[name])) + 4 for name in self.hot_files)
+        return len(self._cold_json) + hot
+
+    # Made once: a big fleet's files are tens of megabytes, and both the digest and the size of
+    # a deploy message are asked of every bundle.  (A frozen dataclass has no setattr, but
+    # cached_property writes the instance's __dict__ directly.)
+    @cached_property
+    def _cold_json(self) -> str:
         cold = {name: text for name, text in sorted(self.files.items()) if name not in self.hot_files}
-        payload = json.dumps(
+        return json.dumps(
             {"entry": self.entry, "options": dict(sorted(self.options.items())), "files": cold}, sort_keys=True
         )
-        return hashlib.sha256(payload.encode()).hexdigest()
 
     def to_json(self) -> dict[str, Any]:
         return {

@@ -8,25 +8,25 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from fleet.control.protocol import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
 from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, outline
-from fleet.expand.parameters import Override, ParameterLayers, check_type_stable, parse_override
+from fleet.expand.parameters import Override, ParameterLayers, check_names_disjoint, check_type_stable, parse_override
 from fleet.expand.python_launch import python_launch_source
 from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference
-from fleet.expand.templating import TemplateSet, builtin_template_dirs
+from fleet.expand.templating import TemplateSet, argument_problem, builtin_template_dirs
 from fleet.spec.model import FleetSpec, Model, Robot
+from fleet.spec.names import WORLD_TEMPLATE, WORLD_UNIT, node_name_problem
 from fleet.spec.params import unflatten
-from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, safe_load
-
-WORLD = "world"
-WORLD_TEMPLATE = "world"
+from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input, safe_load
+from fleet.world.description import world_spec
+from fleet.world.geometry import spawn_problem
 
 # Parameter layers shared by the robots of one template and node set.
 SharedLayers = dict[tuple[str, frozenset[str]], ParameterLayers]
@@ -72,23 +72,40 @@ class Expansion:
     def for_agent(self, agent: str) -> list[Bundle]:
         return [bundle for bundle in self.bundles if bundle.agent == agent]
 
+    # Lookups by name: indexed once, since a table of every robot asks for each one (an
+    # expansion is not changed once made).
+    @cached_property
+    def _bundles_by_name(self) -> dict[str, Bundle]:
+        return {bundle.name: bundle for bundle in self.bundles}
+
+    @cached_property
+    def _robots_by_name(self) -> dict[str, RobotPlan]:
+        return {robot.name: robot for robot in self.robots}
+
     def bundle(self, name: str) -> Bundle | None:
-        return next((bundle for bundle in self.bundles if bundle.name == name), None)
+        return self._bundles_by_name.get(name)
 
     def robot(self, name: str) -> RobotPlan | None:
-        return next((robot for robot in self.robots if robot.name == name), None)
+        return self._robots_by_name.get(name)
 
 
 def template_set_for(spec: FleetSpec) -> TemplateSet:
     directories = []
     if spec.templates is not None:
-        directories.append((Path(spec.source_file).parent / spec.templates).resolve())
-        if not directories[0].is_dir():
-            raise SpecError(f"templates directory {directories[0]} does not exist", Location(spec.source_file))
+        try:
+            directories.append((Path(spec.source_file).parent / spec.templates).resolve())
+            found = directories[0].is_dir()
+        except (OSError, ValueError):  # a NUL in the name, a loop of links
+            found = False
+        if not found:
+            raise SpecError(
+                f"templates directory {spec.templates} does not exist", _spec_location(spec, ("templates",))
+            )
     return TemplateSet(directories + builtin_template_dirs())
 
 
 def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Expansion:
+    _check_units_per_agent(spec)
     templates = template_set_for(spec)
     overrides = [parse_override(text) for text in sets]
     shared_layers: SharedLayers = {}  # per template and node set
@@ -99,12 +116,19 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
     warnings: list[str] = []
+    checked: set[int] = set()  # shared layers checked with a robot: the next ones check only what they changed
     for plan in robots:
-        check_type_stable(plan.parameters, plan.name)
-        warnings += plan.parameters.unknown_to_template(plan.parameters.template_defaults)
-    bundles = [_robot_bundle(spec, plan) for plan in robots]
+        layers = plan.parameters
+        nodes = layers.changed if id(layers.origin) in checked else None
+        check_type_stable(layers, plan.name, nodes)
+        check_names_disjoint(layers, plan.name, nodes)
+        warnings += layers.unknown_to_template(layers.template_defaults, nodes)
+        checked.add(id(layers.origin))
+    sections: dict[DocPath, str] = {}
+    bundles = [_robot_bundle(spec, plan, sections) for plan in robots]
     if spec.world is not None:
         bundles.append(_world_bundle(spec, templates))
+    _check_deliverable(spec, bundles)
     return Expansion(spec=spec, robots=robots, bundles=bundles, warnings=sorted(set(warnings)))
 
 
@@ -132,8 +156,10 @@ def _plan_robot(
         "fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time},
         "params_file": params_file_reference(robot.name),
     }
-    where = _spec_location(spec, ("robots", index, "template") if robot.template else ("robots", index, "name"))
-    rendered = renderer.render(template, context, arguments, where)
+    if templates.find(template) is None:
+        path: DocPath = ("robots", index, "template") if robot.template else ("defaults", "template")
+        raise templates.not_found(template, _spec_location(spec, path))
+    rendered = renderer.render(template, context, arguments, Location(spec.source_file))
     shape = rendered.outline
     unknown = sorted(set(arguments) - set(shape.arguments))
     if unknown:
@@ -144,6 +170,18 @@ def _plan_robot(
             f"(arguments: {', '.join(shape.arguments) or 'none'})",
             _spec_location(spec, path),
         )
+    for name, value in arguments.items():
+        if problem := argument_problem(value, rendered.argument_defaults.get(name)):
+            path = (
+                ("robots", index, "launch_args", name)
+                if name in robot.launch_args
+                else ("defaults", "launch_args", name)
+            )
+            raise SpecError(f"launch argument {name} {problem}", _spec_location(spec, path))
+    for shaped in shape.nodes:
+        if problem := node_name_problem(shaped.fqn):
+            at: DocPath = ("robots", index, "namespace") if robot.namespace else ("robots", index, "name")
+            raise SpecError(f"robot {robot.name}: {problem}", _spec_location(spec, at))
     node_names = {node.name for node in shape.nodes}
     layers = _shared_layers(spec, templates, template, frozenset(node_names), shared_layers).copy()
     for node, values in robot.parameters.items():
@@ -215,12 +253,11 @@ def _spec_location(spec: FleetSpec, path: DocPath) -> Location:
 
 def _parse_rendered(text: str, template_file: Path, unit: str) -> Any:
     try:
-        return safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        line = f" at line {mark.line + 1} of its output" if mark else ""
+        return safe_load(text, template_file)
+    except SpecError as error:
+        line = f" at line {error.location.line} of its output" if error.location and error.location.line else ""
         raise TemplateError(
-            f"rendered invalid YAML for {unit}{line}: {getattr(error, 'problem', error)}", Location(template_file)
+            f"rendered invalid YAML for {unit}{line}: {error.message}", Location(template_file)
         ) from None
 
 
@@ -230,7 +267,7 @@ def _template_defaults(
     path = templates.defaults_file(template)
     if path is None:
         return {}, None, None
-    data, source = load_yaml(path.read_text(encoding="utf-8"), path)
+    data, source = load_yaml(read_input(path, "template parameter defaults"), path)
     if data is None:
         return {}, path, source
     if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
@@ -267,14 +304,14 @@ def _check_default_nodes(spec: FleetSpec, robots: list[RobotPlan]) -> None:
 
 def _model_of(spec: FleetSpec, robot: Robot) -> Model:
     changes = robot.model.model_dump(exclude_none=True)
-    return spec.defaults.model.model_copy(update=changes)
+    return spec.defaults.model.model_copy(update=changes) if changes else spec.defaults.model
 
 
-def _robot_bundle(spec: FleetSpec, plan: RobotPlan) -> Bundle:
+def _robot_bundle(spec: FleetSpec, plan: RobotPlan, sections: dict[DocPath, str] | None = None) -> Bundle:
     files = {
         f"{plan.name}.launch.yaml": plan.launch_text,
         f"{plan.name}.launch.py": plan.launch_python,
-        f"{plan.name}.params.yaml": params_file_text(spec, plan),
+        f"{plan.name}.params.yaml": params_file_text(spec, plan, sections),
     }
     return Bundle(
         name=plan.name,
@@ -293,20 +330,32 @@ def isolation_options(spec: FleetSpec, isolation: str) -> dict[str, str]:
     return {"isolation": isolation}
 
 
-def params_file_text(spec: FleetSpec, plan: RobotPlan) -> str:
-    """One fully-qualified section per node: /robot1/controller: {ros__parameters: {...}}."""
-    effective = plan.parameters.effective()
-    sections = {}
+def params_file_text(spec: FleetSpec, plan: RobotPlan, sections: dict[DocPath, str] | None = None) -> str:
+    """One fully-qualified section per node: /robot1/controller: {ros__parameters: {...}}.
+
+    `sections` keeps the text of sections robots share (a node whose parameters a robot did not
+    change is its template's and the spec's defaults): written once, not once per robot."""
+    sections = {} if sections is None else sections
+    layers = plan.parameters
+    done = set()
+    text = []
     for node in plan.outline.nodes:
-        if node.fqn in sections:
+        if node.fqn in done:
             continue
-        sections[node.fqn] = {"ros__parameters": unflatten(effective.get(node.name, {}))}
+        done.add(node.fqn)
+        key = (id(layers.origin), node.name) if layers.same_as_origin(node.name) else None
+        body = sections.get(key) if key is not None else None
+        if body is None:
+            body = yaml_emit.emit({"ros__parameters": unflatten(layers.effective_of(node.name))}, indent=1)
+            if key is not None:
+                sections[key] = body
+        text.append(f"{yaml_emit.mapping_key(node.fqn)}:\n{body}")
     header = (
         f"# Parameters of robot {plan.name} in fleet {spec.fleet}, generated by fleet.\n"
         f"# Layers, lowest first: template {plan.template} < spec defaults < robot < --set.\n"
         f"# See where a value comes from: fleet render SPEC --explain {plan.name}.NODE.PARAMETER\n"
     )
-    return header + yaml_emit.emit(sections)
+    return header + "".join(text)
 
 
 def world_description(spec: FleetSpec) -> dict[str, Any]:
@@ -352,20 +401,21 @@ def world_description(spec: FleetSpec) -> dict[str, Any]:
 def _world_bundle(spec: FleetSpec, templates: TemplateSet) -> Bundle:
     context = {"fleet": {"name": spec.fleet, "domain_id": spec.ros.domain_id, "use_sim_time": spec.ros.use_sim_time}}
     rendered = templates.render(WORLD_TEMPLATE, context, {}, Location(spec.source_file))
-    launch = _parse_rendered(rendered.text, rendered.template_file, WORLD)
+    launch = _parse_rendered(rendered.text, rendered.template_file, WORLD_UNIT)
     outline(launch, Location(rendered.template_file))
     header = (
         f"# The shared world of fleet {spec.fleet}, generated by fleet. Robots join and leave as this file changes.\n"
     )
+    description = world_description(spec)
     files = {
         "world.launch.yaml": rendered.text,
         "world.launch.py": python_launch_source(launch, f"The shared world of fleet {spec.fleet}, generated by fleet."),
-        "world.yaml": header + yaml_emit.emit(world_description(spec)),
+        "world.yaml": header + yaml_emit.emit(description),
     }
     assert spec.world is not None
     agent = spec.world.agent or spec.defaults.agent
-    return Bundle(
-        name=WORLD,
+    bundle = Bundle(
+        name=WORLD_UNIT,
         kind="world",
         agent=agent,
         entry="world.launch.yaml",
@@ -373,3 +423,92 @@ def _world_bundle(spec: FleetSpec, templates: TemplateSet) -> Bundle:
         options={"isolation": "process"},
         hot_files=frozenset({"world.yaml"}),
     )
+    _check_files(spec, bundle)
+    _check_world(spec, description)
+    return bundle
+
+
+def _check_world(spec: FleetSpec, description: dict[str, Any]) -> None:
+    """Refuse what the world would refuse when it loads this description: its own checks of
+    world.yaml and its spawn check, reported at the places in the spec the values come from."""
+    simulated = [index for index, robot in enumerate(spec.robots) if robot.simulated]
+    world = world_spec(description, _WorldPlaces(spec, simulated))
+    problem = spawn_problem(world)
+    if problem is not None:
+        index, why = problem
+        raise SpecError(
+            f"the world would not spawn it: {why}", _spec_location(spec, ("robots", simulated[index], "pose"))
+        )
+
+
+class _WorldPlaces(SourceMap):
+    """Where world.yaml's values are written in the spec: `world.yaml robots[k]` is the k-th
+    simulated robot, its obstacles and settings are the spec's `world`."""
+
+    def __init__(self, spec: FleetSpec, simulated: list[int]):
+        super().__init__(spec.source_file)
+        self.spec = spec
+        self.simulated = simulated
+
+    def locate(self, path: DocPath, key: bool = False) -> Location:
+        if path[:1] == ("robots",) and len(path) > 1:
+            spec_path: DocPath = ("robots", self.simulated[path[1]], *path[2:])
+        elif path[:1] == ("fleet",):
+            spec_path = path
+        else:
+            spec_path = ("world", *path)
+        source = self.spec._source_map
+        return source.locate(spec_path, key=key) if source is not None else Location(self.spec.source_file)
+
+
+def _check_files(spec: FleetSpec, bundle: Bundle) -> None:
+    """An agent refuses a bundle with too many or too large files: refuse it here first."""
+    if problem := files_problem(bundle.files):
+        if bundle.kind == "world":
+            raise SpecError(
+                f"an agent would refuse the world's files: {problem} (simulate fewer robots in one world)",
+                _spec_location(spec, ("world",)),
+            )
+        raise SpecError(
+            f"an agent would refuse robot {bundle.name}'s files: {problem}",
+            _spec_location(spec, ("robots", _robot_index(spec, bundle.name))),
+        )
+
+
+def _check_deliverable(spec: FleetSpec, bundles: list[Bundle]) -> None:
+    """Every bundle, and every agent's share of them, is small enough for the agents (fleet.control.protocol)."""
+    by_agent: dict[str, list[Bundle]] = {}
+    for bundle in bundles:
+        if bundle.kind == "robot":
+            _check_files(spec, bundle)
+        by_agent.setdefault(bundle.agent, []).append(bundle)
+    for agent, group in by_agent.items():
+        size = apply_size_bound(bundle.json_size for bundle in group)
+        if size > MAX_MESSAGE_BYTES:
+            raise SpecError(
+                f"agent {agent}'s {len(group)} units make a deploy message of up to {size / 2**20:.1f} MiB; "
+                f"an agent accepts {MAX_MESSAGE_BYTES / 2**20:.0f} MiB: spread the robots over more agents",
+                _spec_location(spec, ("agents", agent)),
+            )
+
+
+def _check_units_per_agent(spec: FleetSpec) -> None:
+    """An agent runs at most MAX_BUNDLES units: known before anything is expanded."""
+    units: dict[str, int] = {}
+    for robot in spec.robots:
+        agent = robot.agent or spec.defaults.agent
+        units[agent] = units.get(agent, 0) + 1
+    if spec.world is not None:
+        agent = spec.world.agent or spec.defaults.agent
+        units[agent] = units.get(agent, 0) + 1
+    for agent, count in units.items():
+        if count > MAX_BUNDLES:
+            raise SpecError(
+                f"agent {agent} would run {count} units; an agent runs at most {MAX_BUNDLES}: "
+                "spread the robots over more agents",
+                _spec_location(spec, ("agents", agent)),
+            )
+
+
+def _robot_index(spec: FleetSpec, name: str) -> int:
+    return next(index for index, robot in enumerate(spec.robots) if robot.name == name)

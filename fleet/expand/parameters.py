@@ -9,13 +9,14 @@ rcl (in Jazzy the last matching key applied wins, not the most specific).
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
 from fleet.errors import Location, SpecError
-from fleet.spec.params import coerce_like, flatten, normalize, value_problem
+from fleet.spec.names import ros_name_problem
+from fleet.spec.params import coerce_like, flatten, namespace_clash, normalize, value_problem
 from fleet.spec.yaml_source import DocPath, parse_scalar
 
 LAYERS = ("template", "defaults", "robot", "--set")
@@ -57,6 +58,12 @@ def parse_override(text: str) -> Override:
         raise SpecError(str(error), where) from None
     if problem := value_problem(value):
         raise SpecError(problem, where)
+    # The names a spec's parameters must have (fleet.spec.load.check_parameters), and its values.
+    if problem := ros_name_problem(parts[1]):
+        raise SpecError(f"node name {problem}", where)
+    for token in parts[2].split("."):
+        if problem := ros_name_problem(token):
+            raise SpecError(f"parameter name {parts[2]}: {problem}", where)
     return Override(robot=parts[0], node=parts[1], parameter=parts[2], value=normalize(value), text=text)
 
 
@@ -66,12 +73,21 @@ class ParameterLayers:
     def __init__(self) -> None:
         self.history: dict[tuple[str, str], list[Setting]] = {}
         self.template_defaults: dict[str, dict[str, Any]] = {}  # node -> parameters, for typo warnings
+        # A copy knows what it was copied from and which nodes it changed since: the parameters of
+        # the other nodes are its origin's, so their checks and files are made once, not per robot.
+        self.origin: ParameterLayers | None = None
+        self.changed: set[str] = set()
 
     def copy(self) -> ParameterLayers:
         other = ParameterLayers()
         other.history = {key: list(settings) for key, settings in self.history.items()}
         other.template_defaults = self.template_defaults
+        other.origin = self
         return other
+
+    def same_as_origin(self, node: str | None = None) -> bool:
+        """True when this copy's parameters (of `node`, or of every node) are still its origin's."""
+        return self.origin is not None and (node not in self.changed if node is not None else not self.changed)
 
     def add(self, node: str, parameters: dict[str, Any], layer: str, source: Callable[[DocPath], str]) -> None:
         """Add a layer's values; source(key_path) says where each one is written (located lazily:
@@ -80,6 +96,7 @@ class ParameterLayers:
             self.set(node, name, value, layer, partial(source, key_path))
 
     def set(self, node: str, name: str, value: Any, layer: str, source: str | Callable[[], str]) -> None:
+        self.changed.add(node)
         settings = self.history.setdefault((node, name), [])
         reference = settings[0].value if settings else None
         settings.append(Setting(normalize(coerce_like(value, reference)), layer, source))
@@ -91,13 +108,23 @@ class ParameterLayers:
             result.setdefault(node, {})[name] = settings[-1].value
         return result
 
+    def effective_of(self, node: str) -> dict[str, Any]:
+        """Dotted parameter name -> winning value, for one node."""
+        return {name: settings[-1].value for (of, name), settings in self.history.items() if of == node}
+
     def explain(self, node: str, name: str) -> list[Setting]:
         return list(self.history.get((node, name), []))
 
-    def unknown_to_template(self, known: dict[str, dict[str, Any]]) -> list[str]:
+    def of_nodes(self, nodes: Collection[str] | None = None) -> Iterable[tuple[tuple[str, str], list[Setting]]]:
+        """The history of every node's parameters, or only of `nodes`' ones."""
+        if nodes is None:
+            return self.history.items()
+        return ((key, settings) for key, settings in self.history.items() if key[0] in nodes)
+
+    def unknown_to_template(self, known: dict[str, dict[str, Any]], nodes: Collection[str] | None = None) -> list[str]:
         """Warnings for parameters the template's defaults do not know (likely typos)."""
         warnings = []
-        for (node, name), settings in self.history.items():
+        for (node, name), settings in self.of_nodes(nodes):
             declared = known.get(node, {})
             if declared and name not in declared:
                 hint = difflib.get_close_matches(name, list(declared), n=1)
@@ -108,9 +135,9 @@ class ParameterLayers:
         return warnings
 
 
-def check_type_stable(layers: ParameterLayers, robot: str) -> None:
+def check_type_stable(layers: ParameterLayers, robot: str, nodes: Collection[str] | None = None) -> None:
     """A layer may change a value, not its type: the node declares one type per parameter."""
-    for (node, name), settings in layers.history.items():
+    for (node, name), settings in layers.of_nodes(nodes):
         first = settings[0]
         for later in settings[1:]:
             if _type_name(later.value) != _type_name(first.value):
@@ -119,6 +146,24 @@ def check_type_stable(layers: ParameterLayers, robot: str) -> None:
                     f"({first.source}) but {_type_name(later.value)} here",
                     Location(later.source),
                 )
+
+
+def check_names_disjoint(layers: ParameterLayers, robot: str, nodes: Collection[str] | None = None) -> None:
+    """No parameter is also the namespace of another (`pid` and `pid.kp`), across all layers."""
+    names_by_node: dict[str, list[str]] = {}
+    for (node, name), _ in layers.of_nodes(nodes):
+        names_by_node.setdefault(node, []).append(name)
+    for node, names in names_by_node.items():
+        clash = namespace_clash(names)
+        if clash is None:
+            continue
+        first, second = (layers.history[(node, name)][-1] for name in clash)
+        later = max(first, second, key=lambda setting: LAYERS.index(setting.layer))
+        raise SpecError(
+            f"robot {robot}: {node}.{clash[0]} is a parameter in the {first.layer} layer ({first.source}) and "
+            f"the namespace of {node}.{clash[1]} in the {second.layer} layer ({second.source}): ROS cannot hold both",
+            Location(later.source),
+        )
 
 
 def _type_name(value: Any) -> str:

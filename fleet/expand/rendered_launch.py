@@ -4,21 +4,22 @@ Parsing YAML and emitting the Python launch file cost far more than rendering th
 and in a big fleet most robots render to the same text but for their name and namespace.  So
 each template shape (template + launch arguments) is rendered once with placeholder identities,
 parsed, outlined and turned into Python; a robot reuses that result, with its identity put in
-place of the placeholders, only after checking that this reproduces its own rendering exactly.
-A template that depends on anything else about the robot (its pose, its model, a condition on
-its name) renders differently and is parsed on its own, so the shortcut is never wrong.
+place of the placeholders.  A template that only prints the robot's name, namespace and parameter
+file (known from its syntax tree, TemplateSet.identity_only) is not even rendered again; any
+other is rendered for each robot, and the shortcut taken only when it reproduces that rendering
+exactly.  A template that depends on anything else about the robot (its pose, its model, a
+condition on its name) renders differently and is parsed on its own, so the shortcut is never
+wrong.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from fleet.errors import Location, TemplateError
-from fleet.expand.outline import LaunchOutline, outline
+from fleet.errors import Location, SpecError, TemplateError
+from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.python_launch import python_launch_source
 from fleet.expand.templating import TemplateSet
 from fleet.spec.yaml_source import safe_load
@@ -34,6 +35,7 @@ class RenderedLaunch:
     outline: LaunchOutline
     python: str  # the equivalent .launch.py
     template_file: Path
+    argument_defaults: dict[str, Any] = field(default_factory=dict)  # as the template's arg() calls give them
 
 
 def params_file_reference(robot: str) -> str:
@@ -58,43 +60,56 @@ class LaunchRenderer:
         self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location
     ) -> RenderedLaunch:
         name, namespace = context["robot"]["name"], context["robot"]["namespace"]
-        rendered = self.templates.render(template, context, arguments, where)
         key = (template, tuple(sorted((k, repr(v)) for k, v in arguments.items())))
         shape = self._shapes.get(key)
         if shape is None:
             shape = self._shapes[key] = self._parse(template, _with_placeholders(context), arguments, where, _NAME)
-        if _identify(shape.text, name, namespace) == rendered.text:
-            nodes = tuple(
-                replace(
-                    node,
-                    name=_identify(node.name, name, namespace),
-                    namespace=_identify(node.namespace, name, namespace),
-                )
-                for node in shape.outline.nodes
+        if self.templates.identity_only(template):
+            # The robot's own rendering would be exactly this (see TemplateSet.identity_only).
+            text, argument_defaults = _identify(shape.text, name, namespace), shape.argument_defaults
+        else:
+            rendered = self.templates.render(template, context, arguments, where)
+            if _identify(shape.text, name, namespace) != rendered.text:
+                return self._parse(template, context, arguments, where, name)
+            text, argument_defaults = rendered.text, rendered.arguments_asked
+        nodes = tuple(
+            NodeOutline(
+                name=_identify(node.name, name, namespace),
+                package=node.package,
+                executable=node.executable,
+                namespace=_identify(node.namespace, name, namespace),
+                conditional=node.conditional,
             )
-            return RenderedLaunch(
-                text=rendered.text,
-                outline=LaunchOutline(shape.outline.arguments, nodes),
-                python=_identify(shape.python, name, namespace),
-                template_file=shape.template_file,
-            )
-        return self._parse(template, context, arguments, where, name)
+            for node in shape.outline.nodes
+        )
+        return RenderedLaunch(
+            text=text,
+            outline=LaunchOutline(shape.outline.arguments, nodes),
+            python=_identify(shape.python, name, namespace),
+            template_file=shape.template_file,
+            argument_defaults=argument_defaults,
+        )
 
     def _parse(
         self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location, robot: str
     ) -> RenderedLaunch:
         rendered = self.templates.render(template, context, arguments, where)
         try:
-            document = safe_load(rendered.text)
-        except yaml.YAMLError as error:
-            mark = getattr(error, "problem_mark", None)
-            line = f" at line {mark.line + 1} of its output" if mark else ""
+            document = safe_load(rendered.text, rendered.template_file)
+        except SpecError as error:
+            line = f" at line {error.location.line} of its output" if error.location and error.location.line else ""
             raise TemplateError(
-                f"rendered invalid YAML{line}: {getattr(error, 'problem', error)}", Location(rendered.template_file)
+                f"rendered invalid YAML{line}: {error.message}", Location(rendered.template_file)
             ) from None
         shape = outline(document, Location(rendered.template_file))
         python = python_launch_source(document, python_comment(robot, template, self.fleet))
-        return RenderedLaunch(text=rendered.text, outline=shape, python=python, template_file=rendered.template_file)
+        return RenderedLaunch(
+            text=rendered.text,
+            outline=shape,
+            python=python,
+            template_file=rendered.template_file,
+            argument_defaults=rendered.arguments_asked,
+        )
 
 
 def _with_placeholders(context: dict[str, Any]) -> dict[str, Any]:

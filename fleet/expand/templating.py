@@ -17,9 +17,11 @@ from pathlib import Path
 from typing import Any
 
 import jinja2
+from jinja2 import nodes
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 
 from fleet.errors import Location, TemplateError
+from fleet.spec.names import template_name_problem
 
 TEMPLATE_SUFFIX = ".launch.yaml.j2"
 DEFAULTS_SUFFIX = ".params.yaml"
@@ -52,6 +54,24 @@ def yaml_literal(value: Any) -> str:
     raise TypeError(f"cannot emit a value of type {type(value).__name__} into a launch file")
 
 
+def argument_problem(value: Any, default: Any) -> str | None:
+    """Why `value` cannot be given for a launch argument whose default in the template is
+    `default` (the default says what the launch file does with it), or None."""
+    if isinstance(default, bool):
+        if isinstance(value, bool) or (isinstance(value, str) and value.lower() in ("true", "false")):
+            return None
+        return f"is true or false (its default is {yaml_literal(default)}), got {value!r}"
+    if isinstance(default, int):
+        if isinstance(value, int) and not isinstance(value, bool):
+            return None
+        return f"is an integer (its default is {default}), got {value!r}"
+    if isinstance(default, float):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return None
+        return f"is a number (its default is {default!r}), got {value!r}"
+    return None  # text, or declared by the template without arg(): any value is written as text
+
+
 @dataclass
 class RenderedTemplate:
     text: str
@@ -72,14 +92,44 @@ class TemplateSet:
             keep_trailing_newline=True,
             trim_blocks=True,
             lstrip_blocks=True,
+            auto_reload=False,  # one expansion reads each template once
         )
+        self._found: dict[str, Path | None] = {}
+        self._identity_only: dict[str, bool] = {}
 
     def find(self, name: str) -> Path | None:
+        if name not in self._found:
+            self._found[name] = self._find(name)
+        return self._found[name]
+
+    def _find(self, name: str) -> Path | None:
+        if template_name_problem(name):  # a path, not a name: never looked up
+            return None
         for directory in self.directories:
             candidate = directory / f"{name}{TEMPLATE_SUFFIX}"
             if candidate.is_file():
                 return candidate
         return None
+
+    def not_found(self, name: str, where: Location) -> TemplateError:
+        searched = ", ".join(str(d) for d in self.directories) or "no directories"
+        return TemplateError(f"template {name!r} not found (looked for {name}{TEMPLATE_SUFFIX} in {searched})", where)
+
+    def identity_only(self, name: str) -> bool:
+        """True when template `name` uses the robot only to print `{{ robot.name }}`,
+        `{{ robot.namespace }}` and `{{ params_file }}` as they are: then every robot's rendering
+        is one rendering with its own identity put in place of another's (names and namespaces
+        print as themselves in quotes).  Judged from the syntax tree, conservatively: anything
+        that could read the robot otherwise (a condition, a filter, another template) says no."""
+        if name not in self._identity_only:
+            path = self.find(name)
+            try:
+                source = path.read_text(encoding="utf-8") if path else None
+                tree = self._environment.parse(source) if source is not None else None
+            except (OSError, UnicodeDecodeError, jinja2.TemplateSyntaxError):
+                tree = None  # rendering reports the problem
+            self._identity_only[name] = tree is not None and _prints_identity_only(tree)
+        return self._identity_only[name]
 
     def defaults_file(self, name: str) -> Path | None:
         template = self.find(name)
@@ -94,10 +144,7 @@ class TemplateSet:
         """Render template `name`; `arguments` are the launch argument values given for this unit."""
         path = self.find(name)
         if path is None:
-            searched = ", ".join(str(d) for d in self.directories) or "no directories"
-            raise TemplateError(
-                f"template {name!r} not found (looked for {name}{TEMPLATE_SUFFIX} in {searched})", where
-            )
+            raise self.not_found(name, where)
         asked: dict[str, Any] = {}
 
         def arg(arg_name: str, default: Any) -> str:
@@ -122,9 +169,45 @@ class TemplateSet:
             raise TemplateError(
                 f"template does something unsafe: {error}", Location(path, _template_line(error, path))
             ) from None
-        except TypeError as error:
+        except jinja2.TemplateNotFound as error:
+            raise TemplateError(
+                f"template includes {error.name!r}, which is not in the templates directories",
+                Location(path, _template_line(error, path)),
+            ) from None
+        except RecursionError:
+            raise TemplateError("template includes or calls itself without end", Location(path)) from None
+        except (jinja2.TemplateError, TypeError, ValueError, ArithmeticError, LookupError) as error:
             raise TemplateError(str(error), Location(path, _template_line(error, path))) from None
         return RenderedTemplate(text=text, template_file=path, arguments_asked=asked)
+
+
+_IDENTITY = {"robot": {"name", "namespace"}, "params_file": None}  # variable -> attributes printed
+# Nodes through which a template could read its context other than by printing it.
+_OPAQUE = (
+    nodes.Include,
+    nodes.Import,
+    nodes.FromImport,
+    nodes.Extends,
+    nodes.Block,
+    nodes.Macro,
+    nodes.CallBlock,
+    nodes.FilterBlock,
+    nodes.AssignBlock,
+)
+
+
+def _prints_identity_only(tree: nodes.Template) -> bool:
+    printed = set()
+    for output in tree.find_all(nodes.Output):
+        for child in output.nodes:
+            if isinstance(child, nodes.Getattr) and isinstance(child.node, nodes.Name):
+                if child.attr in (_IDENTITY.get(child.node.name) or ()):
+                    printed.add(id(child.node))
+            elif isinstance(child, nodes.Name) and child.name in _IDENTITY and _IDENTITY[child.name] is None:
+                printed.add(id(child))
+    if any(True for _ in tree.find_all(_OPAQUE)):
+        return False
+    return all(id(name) in printed for name in tree.find_all(nodes.Name) if name.name in _IDENTITY)
 
 
 def _template_line(error: BaseException, path: Path) -> int | None:

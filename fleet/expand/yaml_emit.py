@@ -49,7 +49,7 @@ def emit(tree: dict[str, Any], indent: int = 0) -> str:
     pad = "  " * indent
     lines = []
     for key, value in tree.items():
-        label = _key(key)
+        label = mapping_key(key)
         if isinstance(value, dict):
             if value:
                 lines.append(f"{pad}{label}:\n{emit(value, indent + 1)}")
@@ -67,7 +67,7 @@ def emit(tree: dict[str, Any], indent: int = 0) -> str:
     return "".join(lines)
 
 
-def _key(key: str) -> str:
+def mapping_key(key: str) -> str:
     # Keys are ROS names, parameter names or fully-qualified node names (/robot1/controller):
     # all plain YAML scalars.  Quote anything else rather than trust it.
     if _PLAIN_KEY.fullmatch(key) and key.lower() not in _YAML_WORDS:

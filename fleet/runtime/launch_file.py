@@ -298,12 +298,19 @@ class _Reader:
         return LaunchFileError(message, Location(self.path, line))
 
     def read(self, text: str) -> list:
+        from fleet.spec.yaml_source import safe_load
+
+        try:
+            safe_load(text, self.path)  # the limits of every fleet input first: depth, aliases, tags, numbers
+        except SpecError as problem:
+            raise LaunchFileError(f"invalid YAML: {problem.message}", problem.location) from None
         try:
             loaded, source = load_yaml(text, self.path)
         except YamlSyntaxError as problem:
             raise self.error(f"invalid YAML: {problem.problem}", _line(problem)) from None
         except SpecError as problem:  # duplicate keys and the like, worded by the reader
             raise self.error(problem.message, _line(problem)) from None
+        source.locate(())  # the reader finds places only when first asked: every line is needed here
         data = _with_lines(loaded, (), source)
         if not isinstance(data, _Map) or set(data) != {"launch"}:
             raise self.error("a launch file is a mapping with the single key 'launch'", 1)
@@ -856,10 +863,12 @@ def _parse(
             "launch files with `ros2 launch` (--backend ros2)",
             Location(path),
         )
+    from fleet.spec.yaml_source import read_input
+
     try:
-        text = path.read_text()
-    except OSError as problem:
-        raise LaunchFileError(f"cannot read launch file: {problem.strerror}", Location(path)) from None
+        text = read_input(path, "launch")
+    except SpecError as problem:
+        raise LaunchFileError(f"cannot read launch file: {problem.message}", problem.location) from None
     for name in launch_args:
         if not _NAME_TOKEN.fullmatch(name):
             raise LaunchFileError(f"invalid launch argument name '{name}'", Location(path))

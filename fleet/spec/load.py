@@ -12,21 +12,22 @@ from pydantic import BaseModel, ValidationError
 
 from fleet.errors import Location, SpecError
 from fleet.spec.model import FleetSpec
-from fleet.spec.names import key_name_problem, namespace_problem, ros_name_problem
-from fleet.spec.params import flatten, value_problem
-from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml
+from fleet.spec.names import (
+    RESERVED_UNIT_NAMES,
+    WORLD_TEMPLATE,
+    key_name_problem,
+    namespace_problem,
+    ros_name_problem,
+    template_name_problem,
+)
+from fleet.spec.params import ParameterNameClash, flatten, namespace_clash, value_problem
+from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input
 
 
 def load_spec(path: str | Path) -> FleetSpec:
     """Read and validate the spec at `path`; raises SpecError naming file, line and problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError("no such fleet spec file", Location(path)) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise SpecError(f"cannot read fleet spec: {error}", Location(path)) from None
-    return parse_spec(text, str(path))
+    return parse_spec(read_input(path, "fleet spec"), str(path))
 
 
 def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
@@ -36,7 +37,7 @@ def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
     try:
         spec = FleetSpec.model_validate(data)
     except ValidationError as error:
-        raise _first_problem(error, source) from None
+        raise _first_problem(error, source, data) from None
     spec = spec.model_copy(update={"source_file": file})
     spec._source_map = source
     check_spec(spec, source)
@@ -64,6 +65,15 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
     if any(robot.agent is None for robot in spec.robots) or (spec.world and spec.world.agent is None):
         check_agent(spec.defaults.agent, ("defaults", "agent"))
 
+    def check_template(name: str | None, path: DocPath) -> None:
+        if name is None:
+            return
+        if problem := template_name_problem(name):
+            fail(f"template {problem}", path)
+        if name == WORLD_TEMPLATE:
+            fail(f"template {name!r} runs the fleet's shared world: a robot cannot use it", path)
+
+    check_template(spec.defaults.template, ("defaults", "template"))
     check_parameters(spec.defaults.parameters, ("defaults", "parameters"), source)
     check_launch_args(spec.defaults.launch_args, ("defaults", "launch_args"), source)
     namespaces: dict[str, int] = {}
@@ -72,6 +82,13 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
         here = ("robots", index)
         if problem := ros_name_problem(robot.name):
             fail(f"robot name {problem}", (*here, "name"))
+        if robot.name in RESERVED_UNIT_NAMES:
+            fail(
+                f"robot name {robot.name!r} is reserved: the fleet's shared {robot.name} runs under that name, "
+                "and the robot would overwrite its files",
+                (*here, "name"),
+            )
+        check_template(robot.template, (*here, "template"))
         if robot.name in seen:
             fail(f"duplicate robot name {robot.name!r} (first defined as robots[{seen[robot.name]}])", (*here, "name"))
         seen[robot.name] = index
@@ -128,11 +145,25 @@ def check_launch_args(arguments: dict[str, Any], path: DocPath, source: SourceMa
 
 
 def check_parameters(parameters: dict[str, dict[str, Any]], path: DocPath, source: SourceMap) -> None:
-    """Node names are ROS names; every (nested) parameter value is one ROS can hold."""
+    """Node names are ROS names; every (nested) parameter name is one, named once; every value is
+    one ROS can hold."""
     for node, values in parameters.items():
         if problem := ros_name_problem(node):
             raise SpecError(f"node name {problem}", source.locate((*path, node), key=True))
-        for name, (key_path, value) in flatten(values).items():
+        try:
+            flat = flatten(values)
+        except ParameterNameClash as clash:
+            raise SpecError(
+                f"parameter {node}.{clash.name} is written twice (as a dotted key and nested)",
+                source.locate((*path, node, *clash.key_path), key=True),
+            ) from None
+        for name, (key_path, value) in flat.items():
+            for key in key_path:
+                if not isinstance(key, str):
+                    raise SpecError(
+                        f"parameter name {key!r} in {node} must be text, not {type(key).__name__}",
+                        source.locate((*path, node, *key_path), key=True),
+                    )
             for token in name.split("."):
                 if problem := ros_name_problem(token):
                     raise SpecError(
@@ -140,14 +171,20 @@ def check_parameters(parameters: dict[str, dict[str, Any]], path: DocPath, sourc
                     )
             if problem := value_problem(value):
                 raise SpecError(f"parameter {node}.{name}: {problem}", source.locate((*path, node, *key_path)))
+        if overlap := namespace_clash(flat):
+            raise SpecError(
+                f"{node}.{overlap[0]} is both a parameter and the namespace of {node}.{overlap[1]}: "
+                "ROS cannot hold both",
+                source.locate((*path, node, *flat[overlap[1]][0]), key=True),
+            )
 
 
-def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
+def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> SpecError:
     """Turn pydantic's first error into one line with the place it refers to."""
     # A misspelt key also makes the key it should have been "missing": report the typo first.
     problems = error.errors()
     problem = next((p for p in problems if p["type"] == "extra_forbidden"), problems[0])
-    loc = tuple(part for part in problem["loc"] if not _is_pydantic_branch(part))
+    loc = _data_path(problem["loc"], data)
     kind = problem["type"]
     where = ".".join(str(p) if not isinstance(p, int) else f"[{p}]" for p in loc).replace(".[", "[")
     if kind == "extra_forbidden":
@@ -172,9 +209,27 @@ def _first_problem(error: ValidationError, source: SourceMap) -> SpecError:
     return SpecError(f"{where}: {message}" if where else message, source.locate(loc))
 
 
-def _is_pydantic_branch(part: Any) -> bool:
-    # Unions and tagged types add loc parts like 'function-after[...]' or 'literal[...]'.
-    return isinstance(part, str) and ("[" in part or part in ("tuple",))
+def _data_path(loc: tuple[Any, ...], data: Any) -> DocPath:
+    """The path in the document of pydantic's error location: the keys and indexes found in the
+    data, without the parts pydantic adds for union branches and validators (`int`,
+    `function-after[...]`), which a user's key may look like."""
+    path = []
+    for part in loc:
+        found = (isinstance(data, dict) and part in data) or (
+            isinstance(data, (list, tuple)) and isinstance(part, int) and 0 <= part < len(data)
+        )
+        if found:
+            data = data[part]
+        elif isinstance(data, dict) and isinstance(part, str) and "[" not in part and part not in _BRANCHES:
+            data = None  # a key the data lacks: a missing one, reported in its parent
+        else:
+            continue
+        path.append(part)
+    return tuple(path)
+
+
+# Union branch names pydantic puts in error locations (the types of a launch argument's value).
+_BRANCHES = {"bool", "int", "float", "str", "tuple", "list", "dict", "none"}
 
 
 def _parent(loc: DocPath) -> str:

@@ -10,6 +10,21 @@ _ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 # Zenoh key chunks must not contain / * $ ? # and we keep them boring on purpose.
 _KEY_CHUNK = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 MAX_NAME_LENGTH = 63
+# rmw (validate_full_topic_name.h): a fully qualified topic or service name has at most 255 - 8
+# characters, 8 being reserved for the DDS prefixes; a namespace 2 fewer (validate_namespace.h),
+# room for the shortest name in it.  Both checked with rclpy's validators.
+MAX_TOPIC_NAME_LENGTH = 247
+MAX_NAMESPACE_LENGTH = MAX_TOPIC_NAME_LENGTH - 2
+# Every ROS node serves its parameters under its own name; the longest of those services is the
+# longest name a node creates, so it bounds how long a node's full name can be.
+LONGEST_NODE_SERVICE = "set_parameters_atomically"
+
+# The units an agent runs besides robots, by name.  A robot cannot take one of these names: a
+# robot named `world` would be the world's unit and overwrite its files.
+WORLD_UNIT = "world"
+RESERVED_UNIT_NAMES = frozenset({WORLD_UNIT})
+# The template of the world unit: no robot can run it.
+WORLD_TEMPLATE = "world"
 
 
 def ros_name_problem(name: object) -> str | None:
@@ -33,6 +48,8 @@ def namespace_problem(namespace: object) -> str | None:
         return f"must be a string, not {type(namespace).__name__}"
     if not namespace.startswith("/") or namespace == "/":
         return f"{namespace!r} must be an absolute namespace such as '/robot1'"
+    if len(namespace) > MAX_NAMESPACE_LENGTH:
+        return f"namespace of {len(namespace)} characters: ROS namespaces have at most {MAX_NAMESPACE_LENGTH}"
     for token in namespace[1:].split("/"):
         problem = ros_name_problem(token)
         if problem:
@@ -47,5 +64,29 @@ def key_name_problem(name: object) -> str | None:
     if not _KEY_CHUNK.fullmatch(name) or len(name) > MAX_NAME_LENGTH:
         return (
             f"{name!r} is not a valid name: use letters, digits, '_', '-', '.' (not first), at most {MAX_NAME_LENGTH}"
+        )
+    return None
+
+
+def node_name_problem(fqn: str) -> str | None:
+    """Why a node of this full name (/robot1/controller) could not start: ROS names are bounded."""
+    longest = f"{fqn}/{LONGEST_NODE_SERVICE}"
+    if len(longest) > MAX_TOPIC_NAME_LENGTH:
+        return (
+            f"node {fqn} would serve {longest[:40]}..., {len(longest)} characters: "
+            f"ROS names have at most {MAX_TOPIC_NAME_LENGTH} (use a shorter namespace)"
+        )
+    return None
+
+
+def template_name_problem(name: object) -> str | None:
+    """Why `name` cannot name a template, or None: a plain name, looked up only inside the
+    template directories (never a path)."""
+    if not isinstance(name, str):
+        return f"must be a string, not {type(name).__name__}"
+    if not _KEY_CHUNK.fullmatch(name) or ".." in name or len(name) > MAX_NAME_LENGTH:
+        return (
+            f"{name!r} is not a template name: a plain name of letters, digits, '_', '-', '.' "
+            "found in the templates directory, not a path"
         )
     return None

@@ -7,6 +7,7 @@ parameter `pid.kp`), exactly as rcl reads parameter files.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from fleet.spec.yaml_source import DocPath
@@ -56,17 +57,48 @@ def _kind(value: Any) -> str:
     return "string"
 
 
+class ParameterNameClash(ValueError):
+    """Two keys of one node's parameters that name the same parameter."""
+
+    def __init__(self, name: str, key_path: DocPath):
+        super().__init__(f"{name} is written twice (once as a dotted key, once nested)")
+        self.name = name
+        self.key_path = key_path
+
+
 def flatten(parameters: dict[str, Any], prefix: str = "") -> dict[str, tuple[DocPath, Any]]:
-    """{"pid": {"kp": 1}} -> {"pid.kp": (("pid", "kp"), 1)}: dotted name -> (key path, value)."""
+    """{"pid": {"kp": 1}} -> {"pid.kp": (("pid", "kp"), 1)}: dotted name -> (key path, value).
+    Raises ParameterNameClash when a dotted key and a nested one name the same parameter."""
     flat: dict[str, tuple[DocPath, Any]] = {}
     for key, value in parameters.items():
         name = f"{prefix}{key}"
         if isinstance(value, dict):
             for sub_name, (sub_path, sub_value) in flatten(value, name + ".").items():
-                flat[sub_name] = ((key, *sub_path), sub_value)
+                _put(flat, sub_name, ((key, *sub_path), sub_value))
         else:
-            flat[name] = ((key,), value)
+            _put(flat, name, ((key,), value))
     return flat
+
+
+def _put(flat: dict[str, tuple[DocPath, Any]], name: str, entry: tuple[DocPath, Any]) -> None:
+    if name in flat:
+        raise ParameterNameClash(name, entry[0])
+    flat[name] = entry
+
+
+def namespace_clash(names: Iterable[str]) -> tuple[str, str] | None:
+    """(a, b) when parameter a is also the namespace of parameter b (`pid` and `pid.kp`): a
+    parameter file cannot hold both.  None when there is no such pair."""
+    names = {name for name in names}
+    if not any("." in name for name in names):
+        return None
+    for name in names:
+        parts = name.split(".")
+        for end in range(1, len(parts)):
+            prefix = ".".join(parts[:end])
+            if prefix in names:
+                return prefix, name
+    return None
 
 
 def unflatten(flat: dict[str, Any]) -> dict[str, Any]:

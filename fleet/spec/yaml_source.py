@@ -1,13 +1,28 @@
-"""YAML loading that remembers where every value came from.
+"""YAML loading that remembers where every value came from, within limits.
 
-PyYAML's composer gives nodes with start marks; we build plain Python data from them and a map
-from each value's path (a tuple of keys and list indexes) to its (line, column), so validation
-errors can point at the exact place in the user's file.  Duplicate keys are errors here: plain
-yaml.safe_load silently keeps the last one, which hides typos in specs.
+Every YAML fleet reads from its users (specs, template parameter defaults, rendered templates,
+`--set` values, world.yaml) goes through `load_yaml`.  It builds plain Python data straight from
+the parser's events, with a map from each value's path (a tuple of keys and list indexes) to its
+(line, column), so validation errors point at the exact place in the user's file.
+
+What plain yaml.safe_load lets through and this refuses, each with its own message:
+- duplicate keys (safe_load keeps the last one, which hides typos) and merge keys (`<<`);
+- tags other than the core ones (`!!str`, `!!int`, `!!float`, `!!bool`, `!!null`, `!!seq`,
+  `!!map`): fleet would silently ignore them;
+- NaN and infinity, integers outside ROS's int64 and floats beyond the double range;
+- more than MAX_DEPTH nested collections (libyaml's composer recurses in C and crashes the
+  interpreter on deep nesting, so collections are built here from events, without recursion);
+- aliases that refer to the collection they are in, and documents that aliases expand to more
+  than MAX_VALUES values (an "alias bomb": a few hundred bytes that expand to gigabytes).
+  An alias shares the anchored value instead of copying it, and adds its size to the count, so
+  refusing a bomb costs no more than reading it;
+- texts longer than MAX_TEXT_CHARS.
+Timestamps (`2024-05-01`) stay strings, as ROS's own parameter parser reads them.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,9 +38,33 @@ FAST_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 # A place in a loaded document: the keys and list indexes leading to it, ("robots", 0, "name").
 DocPath = tuple[Any, ...]
 
+MAX_TEXT_CHARS = 16 * 1024 * 1024
+MAX_DEPTH = 64  # nested collections; a fleet spec needs about ten
+MAX_VALUES = 2_000_000  # values of a document with its aliases expanded; the 20,000-robot benchmark spec has 350,000
+MAX_NUMBER_CHARS = 100  # longer numbers are refused before Python converts them
+INT64 = (-(2**63), 2**63 - 1)
 
-def safe_load(text: str) -> Any:
-    return yaml.load(text, Loader=FAST_LOADER)
+_CORE = "tag:yaml.org,2002:"
+_STR, _INT, _FLOAT, _MERGE, _MAP, _SEQ = (_CORE + name for name in ("str", "int", "float", "merge", "map", "seq"))
+_SCALAR_TAGS = {_CORE + name for name in ("str", "int", "float", "bool", "null")}
+_AS_TEXT = {_CORE + "timestamp", _CORE + "value", "!"}  # YAML 1.1 oddities ROS reads as strings
+# The first characters of plain scalars PyYAML may give a type other than string (None: any).
+_TYPED_FIRST = frozenset(FAST_LOADER.yaml_implicit_resolvers)
+assert None not in _TYPED_FIRST
+_CONSTRUCTOR = yaml.constructor.SafeConstructor()
+_NO_KEY = object()
+
+
+class YamlError(SpecError):
+    """YAML that cannot be read, or exceeds one of the limits above."""
+
+
+class YamlSyntaxError(YamlError):
+    """The text is not YAML; `problem` is the parser's own words (other readers word it their way)."""
+
+    def __init__(self, problem: str, location: Location):
+        super().__init__(f"YAML syntax error: {problem}", location)
+        self.problem = problem
 
 
 @dataclass
@@ -35,9 +74,15 @@ class SourceMap:
     file: str
     positions: dict[DocPath, tuple[int, int]] = field(default_factory=dict)
     key_positions: dict[DocPath, tuple[int, int]] = field(default_factory=dict)
+    # The text the positions are read from when first asked for: places are shown only with
+    # errors, warnings and --explain, so a document that is fine is read once, without them.
+    text: str | None = field(default=None, repr=False)
 
     def locate(self, path: DocPath, key: bool = False) -> Location:
         """The location of `path`, or of its closest ancestor that has one."""
+        if self.text is not None:
+            text, self.text = self.text, None
+            _Composer(text, self).compose()
         table = self.key_positions if key else self.positions
         probe = tuple(path)
         while True:
@@ -52,78 +97,272 @@ class SourceMap:
             probe = probe[:-1]
 
 
-class YamlSyntaxError(SpecError):
-    """The text is not YAML; `problem` is the parser's own words (other readers word it their way)."""
-
-    def __init__(self, problem: str, location: Location):
-        super().__init__(f"YAML syntax error: {problem}", location)
-        self.problem = problem
+def read_input(path: Path, what: str) -> str:
+    """The text of an input file named by the user, refused when it is not readable UTF-8 text
+    or longer than MAX_TEXT_CHARS (read in bounded size, so /dev/zero cannot fill the memory)."""
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_TEXT_CHARS + 1)
+    except FileNotFoundError:
+        raise YamlError(f"no such {what} file", Location(path)) from None
+    except OSError as error:
+        raise YamlError(f"cannot read {what} file: {error.strerror or error}", Location(path)) from None
+    if len(data) > MAX_TEXT_CHARS:
+        raise YamlError(f"{what} file is larger than {MAX_TEXT_CHARS} bytes", Location(path)) from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = data.count(b"\n", 0, error.start) + 1
+        raise YamlError(
+            f"cannot read {what} file: not UTF-8 text (byte {data[error.start]:#04x})", Location(path, line)
+        ) from None
 
 
 def load_yaml(text: str, file: str | Path) -> tuple[Any, SourceMap]:
-    """Parse YAML text into plain data plus its SourceMap; syntax errors become SpecError."""
+    """Parse YAML text into plain data plus its SourceMap; every problem is a SpecError."""
     source = SourceMap(str(file))
-    try:
-        node = yaml.compose(text, Loader=FAST_LOADER)
-    except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark or error.context_mark
-        problem = error.problem or error.context or "invalid YAML"
-        location = Location(file, mark.line + 1, mark.column + 1) if mark else Location(file)
-        raise YamlSyntaxError(problem, location) from None
-    except yaml.YAMLError as error:
-        raise SpecError(f"YAML error: {error}", Location(file)) from None
-    if node is None:
-        return None, source
-    return _Builder(source).build(node, ()), source
+    data = _Composer(text, source, record=False).compose()
+    source.text = text
+    return data, source
 
 
-class _Builder:
-    """Plain data from composed nodes, recording positions on the way."""
-
-    def __init__(self, source: SourceMap):
-        self.source = source
-        self.constructor = yaml.constructor.SafeConstructor()
-
-    def build(self, node: yaml.Node, path: DocPath) -> Any:
-        return _construct(node, path, self.source, self)
-
-
-def _construct(node: yaml.Node, path: DocPath, source: SourceMap, builder: _Builder) -> Any:
-    source.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
-    if isinstance(node, yaml.MappingNode):
-        result: dict[Any, Any] = {}
-        for key_node, value_node in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":
-                raise SpecError("YAML merge keys (<<) are not supported in fleet specs", _mark(source, key_node))
-            key = _scalar(key_node, source, builder)
-            if not isinstance(key, (str, int, float, bool)):
-                raise SpecError("mapping keys must be plain scalars", _mark(source, key_node))
-            if key in result:
-                raise SpecError(f"duplicate key {key!r}", _mark(source, key_node))
-            source.key_positions[(*path, key)] = (key_node.start_mark.line + 1, key_node.start_mark.column + 1)
-            result[key] = _construct(value_node, (*path, key), source, builder)
-        return result
-    if isinstance(node, yaml.SequenceNode):
-        return [_construct(item, (*path, index), source, builder) for index, item in enumerate(node.value)]
-    return _scalar(node, source, builder)
-
-
-def _scalar(node: yaml.Node, source: SourceMap, builder: _Builder) -> Any:
-    if not isinstance(node, yaml.ScalarNode):
-        raise SpecError("expected a plain value here", _mark(source, node))
-    try:
-        return builder.constructor.construct_object(node, deep=True)
-    except yaml.constructor.ConstructorError as error:
-        raise SpecError(f"bad value: {error.problem}", _mark(source, node)) from None
-
-
-def _mark(source: SourceMap, node: yaml.Node) -> Location:
-    return Location(source.file, node.start_mark.line + 1, node.start_mark.column + 1)
+def safe_load(text: str, file: str | Path = "<yaml>") -> Any:
+    """Plain data from YAML text, with the limits and refusals of load_yaml but no SourceMap."""
+    return _Composer(text, SourceMap(str(file)), record=False).compose()
 
 
 def parse_scalar(text: str) -> Any:
-    """A command-line value parsed as one YAML scalar or flow collection (`0.8`, `true`, `[1, 2]`)."""
+    """A command-line value parsed as one YAML scalar or flow collection (`0.8`, `true`, `[1, 2]`);
+    raises ValueError saying why it is not one."""
+    if not text.strip():
+        return ""
     try:
-        return safe_load(text) if text.strip() else ""
-    except yaml.YAMLError as error:
-        raise ValueError(f"not a YAML value: {error}") from None
+        return safe_load(text)
+    except SpecError as error:
+        raise ValueError(f"not a YAML value: {error.message}") from None
+
+
+class _Frame:
+    """A collection being built."""
+
+    __slots__ = ("anchor", "container", "key", "path", "size")
+
+    def __init__(self, container: dict[Any, Any] | list[Any], path: DocPath | None, anchor: str | None):
+        self.container = container
+        self.path = path
+        self.anchor = anchor
+        self.key: Any = _NO_KEY  # a mapping's key waiting for its value
+        self.size = 1  # values in it, itself included, aliases expanded
+
+
+class _Composer:
+    def __init__(self, text: str, source: SourceMap, record: bool = True):
+        self.text = text
+        self.source = source
+        self.record = record  # fill source.positions and key_positions
+        self.anchors: dict[str, tuple[Any, int]] = {}  # anchor -> (value, size)
+        self.values = 0
+
+    def compose(self) -> Any:
+        if len(self.text) > MAX_TEXT_CHARS:
+            raise YamlError(
+                f"{len(self.text)} characters: larger than the {MAX_TEXT_CHARS} a YAML input may have",
+                Location(self.source.file),
+            )
+        loader = FAST_LOADER(self.text)
+        try:
+            return self._build(loader)
+        except yaml.MarkedYAMLError as error:
+            mark = error.problem_mark or error.context_mark
+            problem = error.problem or error.context or "invalid YAML"
+            raise YamlSyntaxError(problem, self._location(mark)) from None
+        except yaml.reader.ReaderError as error:
+            line = self.text.count("\n", 0, error.position) + 1
+            column = error.position - (self.text.rfind("\n", 0, error.position) + 1) + 1
+            character = chr(error.character) if isinstance(error.character, int) else error.character
+            raise YamlError(
+                f"YAML syntax error: character {character!r} is not allowed in YAML",
+                Location(self.source.file, line, column),
+            ) from None
+        except yaml.YAMLError as error:
+            raise YamlError(f"YAML error: {error}", Location(self.source.file)) from None
+        finally:
+            loader.dispose()
+
+    def _build(self, loader: Any) -> Any:
+        # The hot loop of reading a big spec (one pass per event): kept flat, with locals.
+        stack: list[_Frame] = []
+        open_anchors: set[str] = set()
+        root: Any = None
+        documents = 0
+        record = self.record
+        get_event = loader.get_event
+        while True:
+            event = get_event()
+            kind = type(event)
+            if kind is yaml.ScalarEvent:
+                self.values += 1
+                if self.values > MAX_VALUES:
+                    raise self._too_many(event, alias=False)
+                value, size = self._scalar(event, loader), 1
+                if event.anchor is not None:
+                    self.anchors[event.anchor] = (value, size)
+                if record:
+                    self._record(stack, event)
+            elif kind is yaml.MappingStartEvent or kind is yaml.SequenceStartEvent:
+                is_map = kind is yaml.MappingStartEvent
+                if event.tag is not None and event.tag not in (_MAP if is_map else _SEQ, "!"):
+                    raise self._tag_error(event)
+                if len(stack) >= MAX_DEPTH:
+                    raise YamlError(
+                        f"more than {MAX_DEPTH} nested lists and mappings: too deep for a fleet input",
+                        self._location(event.start_mark),
+                    )
+                if stack and stack[-1].key is _NO_KEY and isinstance(stack[-1].container, dict):
+                    raise YamlError("mapping keys must be plain scalars", self._location(event.start_mark))
+                self.values += 1
+                if self.values > MAX_VALUES:
+                    raise self._too_many(event, alias=False)
+                path = self._record(stack, event) if record else None
+                stack.append(_Frame({} if is_map else [], path, event.anchor))
+                if event.anchor is not None:
+                    open_anchors.add(event.anchor)
+                continue
+            elif kind is yaml.MappingEndEvent or kind is yaml.SequenceEndEvent:
+                frame = stack.pop()
+                value, size = frame.container, frame.size
+                if frame.anchor is not None:
+                    open_anchors.discard(frame.anchor)
+                    self.anchors[frame.anchor] = (value, size)
+            elif kind is yaml.AliasEvent:
+                if event.anchor in open_anchors:
+                    raise YamlError(
+                        f"alias *{event.anchor} refers to the collection it is in: an endless value",
+                        self._location(event.start_mark),
+                    )
+                if event.anchor not in self.anchors:
+                    raise YamlError(f"alias *{event.anchor} has no anchor before it", self._location(event.start_mark))
+                value, size = self.anchors[event.anchor]
+                self.values += size
+                if self.values > MAX_VALUES:
+                    raise self._too_many(event, alias=True)
+                if record:
+                    self._record(stack, event)
+            elif kind is yaml.DocumentStartEvent:
+                documents += 1
+                if documents > 1:
+                    raise YamlError(
+                        "a second YAML document ('---'): give one document", self._location(event.start_mark)
+                    )
+                continue
+            elif kind is yaml.StreamEndEvent:
+                return root
+            else:  # stream start, document end
+                continue
+            if not stack:
+                root = value
+                continue
+            parent = stack[-1]
+            parent.size += size
+            container = parent.container
+            if type(container) is list:
+                container.append(value)
+            elif parent.key is _NO_KEY:
+                if type(value) is not str and not isinstance(value, (int, float)):  # bools are ints
+                    raise YamlError("mapping keys must be plain scalars", self._location(event.start_mark))
+                if value in container:
+                    raise YamlError(f"duplicate key {value!r}", self._location(event.start_mark))
+                if record and parent.path is not None:
+                    mark = event.start_mark
+                    self.source.key_positions[(*parent.path, value)] = (mark.line + 1, mark.column + 1)
+                parent.key = value
+            else:
+                container[parent.key] = value
+                parent.key = _NO_KEY
+
+    def _record(self, stack: list[_Frame], event: Any) -> DocPath | None:
+        """The path of the value `event` starts, noted with its position (None for a key)."""
+        if not stack:
+            path: DocPath = ()
+        else:
+            parent = stack[-1]
+            if parent.path is None:
+                return None
+            if isinstance(parent.container, list):
+                path = (*parent.path, len(parent.container))
+            elif parent.key is _NO_KEY:
+                return None
+            else:
+                path = (*parent.path, parent.key)
+        if self.record:
+            self.source.positions[path] = (event.start_mark.line + 1, event.start_mark.column + 1)
+        return path
+
+    def _too_many(self, event: Any, alias: bool) -> YamlError:
+        problem = "aliases expand this document to" if alias else "this document has"
+        return YamlError(
+            f"{problem} more than {MAX_VALUES} values: too big for a fleet input", self._location(event.start_mark)
+        )
+
+    def _tag_error(self, event: Any) -> YamlError:
+        tag = str(event.tag).replace(_CORE, "!!")
+        return YamlError(
+            f"YAML tag {tag} is not supported: fleet reads plain strings, numbers, booleans, null, lists and mappings",
+            self._location(event.start_mark),
+        )
+
+    def _scalar(self, event: Any, loader: Any) -> Any:
+        tag, text = event.tag, event.value
+        if tag is None:
+            # Quoted and block scalars are strings, and so are plain ones no implicit type starts
+            # with (most names); the others are typed by PyYAML's resolver.
+            if not event.implicit[0] or (text and text[0] not in _TYPED_FIRST):
+                return text
+            tag = loader.resolve(yaml.ScalarNode, text, event.implicit)
+        if tag == _STR or tag in _AS_TEXT:
+            return text
+        if tag in (_FLOAT, _INT):
+            return self._number(tag, text, event)
+        if tag == _MERGE:
+            raise YamlError("YAML merge keys (<<) are not supported in fleet specs", self._location(event.start_mark))
+        if tag not in _SCALAR_TAGS:
+            raise self._tag_error(event)
+        try:  # bool and null
+            return _CONSTRUCTOR.yaml_constructors[tag](_CONSTRUCTOR, yaml.ScalarNode(tag, text))
+        except (yaml.constructor.ConstructorError, ValueError, KeyError):
+            raise YamlError(
+                f"{text!r} is not a valid {tag.replace(_CORE, '')}", self._location(event.start_mark)
+            ) from None
+
+    def _number(self, tag: str, text: str, event: Any) -> int | float:
+        if len(text) > MAX_NUMBER_CHARS:
+            raise YamlError(
+                f"number of {len(text)} characters: too large (integers are 64-bit, floats doubles)",
+                self._location(event.start_mark),
+            )
+        try:
+            value: int | float = float(text) if tag == _FLOAT else int(text)  # the common spellings, fast
+        except ValueError:  # YAML 1.1's others: 0x1f, 017, 1:30, .inf ...
+            try:
+                value = _CONSTRUCTOR.yaml_constructors[tag](_CONSTRUCTOR, yaml.ScalarNode(tag, text))
+            except (yaml.constructor.ConstructorError, ValueError, IndexError):
+                raise YamlError(
+                    f"{text!r} is not a valid {tag.replace(_CORE, '')}", self._location(event.start_mark)
+                ) from None
+        if isinstance(value, float) and not math.isfinite(value):
+            problem = (
+                f"{text} is too large for a float (a double)"
+                if math.isinf(value) and any(char.isdigit() for char in text)
+                else f"{text}: NaN and infinity are not accepted, give a finite number"
+            )
+            raise YamlError(problem, self._location(event.start_mark))
+        if isinstance(value, int) and not INT64[0] <= value <= INT64[1]:
+            raise YamlError(
+                f"integer {text} is outside the 64-bit range ROS integers have", self._location(event.start_mark)
+            )
+        return value
+
+    def _location(self, mark: Any) -> Location:
+        if mark is None:
+            return Location(self.source.file)
+        return Location(self.source.file, mark.line + 1, mark.column + 1)

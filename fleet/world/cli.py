@@ -33,7 +33,7 @@ def world_main(argv: list[str]) -> int:
             sim_duration=args.sim_duration,
         )
     except FleetError as error:
-        sys.stderr.write(f"fleet: error: {error}\n")
+        sys.stderr.write(error.line() + "\n")
         return error.exit_code or EXIT_USAGE
     except KeyboardInterrupt:
         return 130

@@ -38,7 +38,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
-from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml
+from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, read_input
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 MODEL_TYPES = ("light", "husky", "racecar")
@@ -375,19 +375,24 @@ def parse_world(text: str, source: str = "world.yaml") -> WorldSpec:
         raise WorldError(error.message, error.location) from None
     if data is None:
         raise WorldError("world description is empty", Location(source))
+    return world_spec(data, positions)
+
+
+def world_spec(data: Any, places: SourceMap) -> WorldSpec:
+    """Validate world.yaml's data; `places` says where each value was written (for errors)."""
     try:
         world = _world_file().validate_python(data)
     except ValidationError as error:
-        raise _world_error(error, data, positions) from None
-    return world.spec(source)
+        raise _world_error(error, data, places) from None
+    return world.spec(places.file)
 
 
 def load_world(path: str | Path) -> WorldSpec:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise WorldError(f"cannot read world description: {error.strerror}", Location(path)) from None
+        text = read_input(path, "world description")
+    except SpecError as error:
+        raise WorldError(error.message, error.location) from None
     return parse_world(text, str(path))
 
 

@@ -4,9 +4,12 @@ or oriented rectangles seen from above; heights only matter to pybullet."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
-from fleet.world.description import ModelSpec, ObstacleSpec
+from fleet.world.description import ModelSpec, ObstacleSpec, WorldSpec
+
+SPAWN_MARGIN = 0.02  # m of clearance required around a new robot
 
 
 @dataclass(frozen=True)
@@ -73,3 +76,41 @@ def overlaps(a: Shape, b: Shape, margin: float = 0.0) -> bool:
         if max(pa) + margin <= min(pb) or max(pb) + margin <= min(pa):
             return False
     return True
+
+
+def placement_problem(
+    name: str, shape: Shape, obstacles: Iterable[tuple[str, Shape]], robots: Iterable[tuple[str, Shape]]
+) -> str | None:
+    """Why the world refuses to spawn robot `name` with footprint `shape` among these obstacles
+    and robots (name, footprint), or None when the spot is free.  The world asks this before each
+    spawn, and `fleet render` asks it of every robot of a spec, so both refuse the same poses."""
+    for obstacle_name, other in obstacles:
+        if overlaps(shape, other, SPAWN_MARGIN):
+            return f"spawn pose ({shape.x:g}, {shape.y:g}) of robot '{name}' overlaps obstacle '{obstacle_name}'"
+    for other_name, other in robots:
+        if other_name != name and overlaps(shape, other, SPAWN_MARGIN):
+            return (
+                f"spawn pose ({shape.x:g}, {shape.y:g}) of robot '{name}' overlaps robot "
+                f"'{other_name}' at ({other.x:.2f}, {other.y:.2f})"
+            )
+    return None
+
+
+def spawn_problem(world: WorldSpec) -> tuple[int, str] | None:
+    """The first robot of `world` the world would refuse to spawn, as (its index, why), or None.
+
+    The world spawns robots in order, each where nothing spawned before it is.  Robots are put in
+    a grid of cells as wide as two of the largest robots, so each is checked against the few in
+    its own and the eight neighbouring cells: linear in robots, where all pairs would be quadratic."""
+    obstacles = [(obstacle.name, obstacle_shape(obstacle)) for obstacle in world.obstacles]
+    shapes = [robot_shape(robot.model, robot.pose.x, robot.pose.y, robot.pose.yaw) for robot in world.robots]
+    cell = 2 * max((shape.bounding_radius for shape in shapes), default=1.0) + SPAWN_MARGIN
+    grid: dict[tuple[int, int], list[tuple[str, Shape]]] = {}
+    for index, (robot, shape) in enumerate(zip(world.robots, shapes, strict=True)):
+        column, row = math.floor(shape.x / cell), math.floor(shape.y / cell)
+        near = [placed for dx in (-1, 0, 1) for dy in (-1, 0, 1) for placed in grid.get((column + dx, row + dy), ())]
+        problem = placement_problem(robot.name, shape, obstacles, near)
+        if problem is not None:
+            return index, problem
+        grid.setdefault((column, row), []).append((robot.name, shape))
+    return None

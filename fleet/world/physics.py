@@ -14,13 +14,12 @@ import pybullet as pb
 import pybullet_data
 
 from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D
-from fleet.world.geometry import Shape, obstacle_shape, overlaps, robot_shape
+from fleet.world.geometry import Shape, obstacle_shape, placement_problem, robot_shape
 
 GRAVITY = -9.81
 LIGHT_HEIGHT = 0.3  # collision height of the light body; obstacles lower than its bottom are not hit
 LIGHT_Z = LIGHT_HEIGHT / 2 + 0.02  # floats 2 cm above the ground: it never touches the plane
 HUSKY_Z = 0.16  # base_link height with the wheels (radius 0.178, axle 0.033 above base) on the ground
-SPAWN_MARGIN = 0.02  # m of clearance required around a new robot
 
 
 @contextlib.contextmanager
@@ -311,20 +310,9 @@ class PhysicsWorld:
 
     def placement_problem(self, name: str, model: ModelSpec, pose: Pose2D) -> str | None:
         """Why a robot cannot be placed at pose (overlaps), or None when the spot is free."""
-        shape = robot_shape(model, pose.x, pose.y, pose.yaw)
-        for obstacle_name, (_, spec) in self.obstacles.items():
-            if overlaps(shape, obstacle_shape(spec), SPAWN_MARGIN):
-                return f"spawn pose ({pose.x:g}, {pose.y:g}) of robot '{name}' overlaps obstacle '{obstacle_name}'"
-        for other_name, robot in self.robots.items():
-            if other_name == name:
-                continue
-            x, y, yaw = robot.pose()
-            if overlaps(shape, robot_shape(robot.model, x, y, yaw), SPAWN_MARGIN):
-                return (
-                    f"spawn pose ({pose.x:g}, {pose.y:g}) of robot '{name}' overlaps robot "
-                    f"'{other_name}' at ({x:.2f}, {y:.2f})"
-                )
-        return None
+        obstacles = ((obstacle_name, obstacle_shape(spec)) for obstacle_name, (_, spec) in self.obstacles.items())
+        robots = ((other, robot_shape(robot.model, *robot.pose())) for other, robot in self.robots.items())
+        return placement_problem(name, robot_shape(model, pose.x, pose.y, pose.yaw), obstacles, robots)
 
     def add_robot(self, name: str, model: ModelSpec, pose: Pose2D) -> None:
         if name in self.robots:

@@ -70,7 +70,7 @@ def read_status(path: str | Path) -> dict[str, Any] | None:
     but a user may have edited it)."""
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: JSON nested too deeply
         return None
     return data if isinstance(data, dict) else None
 

@@ -63,6 +63,7 @@ def test_a_valid_apply_round_trips():
         (b"[]", "malformed"),
         (b"", "malformed"),
         (None, "malformed"),
+        (b"[" * 100_000 + b"]" * 100_000, "malformed"),  # nested too deeply for the JSON parser
     ],
 )
 def test_malformed_and_truncated_messages_are_refused(payload, code):
@@ -179,6 +180,12 @@ def test_overrides_are_merged_into_the_params_file():
     assert data["/robot1/battery"]["ros__parameters"] == {"capacity": 7.0}
     assert merged["robot1.launch.yaml"] == files["robot1.launch.yaml"]
     assert with_overrides(files, {}) == files
+
+
+def test_a_params_file_of_aliases_is_not_expanded_by_the_agent():
+    bomb = "".join(f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10) if i else '1'}]\n" for i in range(9))
+    files = {"robot1.params.yaml": bomb + "/robot1/controller: {ros__parameters: {max_speed: 0.5}}\n"}
+    assert with_overrides(files, {"/robot1/controller": {"max_speed": 0.9}}) == files
 
 
 def test_desired_state_is_persisted_atomically_and_restored(tmp_path):

@@ -21,7 +21,7 @@ def test_port_in_use_is_one_line_and_exit_2():
         )
     assert result.returncode == 2, result
     assert result.stderr.splitlines() == [
-        f"fleet: error: dashboard: port {port} on 127.0.0.1 is in use (another program listens there): "
+        f"fleet: error: <command line>: dashboard: port {port} on 127.0.0.1 is in use (another program listens there): "
         "pick another with --port, or --port 0 for a free one"
     ]
     assert result.stdout == ""

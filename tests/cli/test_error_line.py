@@ -1,0 +1,105 @@
+"""The one-line rule for every command: bad input, from any file or argument, is one printable line
+`fleet: error: FILE:LINE:COL: problem` of at most 300 characters, exit code 2, nothing done."""
+
+from __future__ import annotations
+
+import pytest
+
+from fleet.errors import MAX_LINE, FleetError, Location, one_line
+from tests.spec.test_bad_input import run_cli
+
+BOMB = "launch:\n" + "".join(
+    f"- &l{level} [{', '.join([f'*l{level - 1}'] * 10) if level else ', '.join(['x'] * 10)}]\n" for level in range(9)
+)
+
+
+def one_error_line(capsys, args: list[str]) -> str:
+    code, _, stderr = run_cli(args, capsys)
+    assert code == 2, stderr
+    assert stderr.count("\n") == 1 and stderr.startswith("fleet: error: "), stderr
+    line = stderr.rstrip("\n")
+    assert len(line) <= MAX_LINE and line.isprintable(), line
+    return line
+
+
+def test_control_characters_are_escaped():
+    assert one_line("a\nb\r\tc\x00\x1b[31m\u2028\u202e\x7f") == "a\\nb\\r\\tc\\x00\\x1b[31m\\u2028\\u202e\\x7f"
+
+
+def test_long_values_keep_their_ends_and_the_place_stays_readable():
+    error = FleetError(
+        f"unknown key {'k' * 5000 + 'END'!r} in robots[0]", Location("/very/" + "deep/" * 10 + "f.yaml", 3, 4)
+    )
+    line = error.line()
+    assert len(line) <= MAX_LINE
+    assert "/f.yaml:3:4: unknown key 'kkkk" in line and "kkkEND' in robots[0]" in line
+    many = FleetError("word " * 500, Location("f.yaml", 1, 1)).line()
+    assert len(many) <= MAX_LINE and many.startswith("fleet: error: f.yaml:1:1: word word") and " ... " in many
+
+
+def test_an_error_without_a_file_is_one_in_the_command_line():
+    assert FleetError("bad option").line() == "fleet: error: <command line>: bad option"
+
+
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["render", "--bogus"], "<command line>: fleet render: No such option: --bogus"),
+        (["render"], "<command line>: fleet render: Missing argument"),
+        (["render", "x.yaml", "--format", "xml"], "Invalid value for '--format'"),
+        (["deploy", "x.yaml", "--timeout", "soon"], "Invalid value for '--timeout'"),
+        (["nosuchcommand"], "No such command 'nosuchcommand'"),
+    ],
+)
+def test_usage_errors_are_one_line(capsys, args, expected):
+    assert expected in one_error_line(capsys, args)
+
+
+def test_help_is_still_help(capsys):
+    code, stdout, _ = run_cli([], capsys)
+    assert code == 2 and "Usage: fleet" in stdout and "render" in stdout
+
+
+def test_output_directory_that_is_a_file(tmp_path, capsys):
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
+    output = tmp_path / "out"
+    output.write_text("mine")
+    line = one_error_line(capsys, ["render", str(spec), "-o", str(output)])
+    assert f"{output}: output directory is a file" in line
+    line = one_error_line(capsys, ["render", str(spec), "-o", str(output / "sub")])
+    assert f"cannot be made: {output} is a file" in line
+    assert output.read_text() == "mine"
+
+
+def test_launch_file_alias_bomb_is_refused_fast(tmp_path, capsys):
+    launch = tmp_path / "bomb.launch.yaml"
+    launch.write_text(BOMB)
+    line = one_error_line(capsys, ["run", str(launch)])
+    assert f"{launch}:" in line and "aliases expand this document to more than" in line
+
+
+def test_launch_argument_without_a_value(tmp_path, capsys):
+    launch = tmp_path / "x.launch.yaml"
+    launch.write_text("launch: []\n")
+    line = one_error_line(capsys, ["run", str(launch), "speed=1\x1b[2J"])
+    assert "speed=1\\x1b[2J: launch arguments are name:=value" in line
+
+
+def test_world_description_limits(tmp_path, capsys):
+    world = tmp_path / "world.yaml"
+    world.write_text("robots: &r [{name: a, pose: *r}]\n")
+    line = one_error_line(capsys, ["world", "--config", str(world)])
+    assert f"{world}:1:" in line and "refers to the collection it is in" in line
+
+
+def test_parameter_value_of_param_set(capsys):
+    line = one_error_line(capsys, ["param", "set", "r1", "controller", "max_speed", "[[[" * 30 + "]]]" * 30])
+    assert "cannot parse value" in line and "too deep" in line
+
+
+def test_status_file_nested_too_deeply(tmp_path, capsys):
+    status = tmp_path / "world.status.json"
+    status.write_text("[" * 100_000 + "]" * 100_000)
+    line = one_error_line(capsys, ["snapshot", "--status-file", str(status), "-o", str(tmp_path / "w.png")])
+    assert "no readable world status" in line
