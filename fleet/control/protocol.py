@@ -29,24 +29,22 @@ import hashlib
 import ipaddress
 import json
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from typing import Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from fleet.control.limits import MAX_BUNDLES as MAX_BUNDLES
+from fleet.control.limits import MAX_FILE_BYTES as MAX_FILE_BYTES
+from fleet.control.limits import MAX_FILES_PER_BUNDLE as MAX_FILES_PER_BUNDLE
+from fleet.control.limits import MAX_LOG_LINES as MAX_LOG_LINES
+from fleet.control.limits import MAX_MESSAGE_BYTES as MAX_MESSAGE_BYTES
+from fleet.control.limits import check_file_name as check_file_name
+from fleet.control.limits import files_problem
 from fleet.dataplane.topics import BridgeRoutes as BridgeRoutes  # part of the protocol (ApplyRequest.bridge)
 
 VERSION: Final = 1
 
-# Limits: far above a real robot's launch description, far below what could hurt an agent.
-MAX_MESSAGE_BYTES = 8 * 1024 * 1024
-MAX_FILE_BYTES = 1024 * 1024
-MAX_FILES_PER_BUNDLE = 64
-MAX_BUNDLES = 1024
-MAX_LOG_LINES = 10_000
-
-# A bundle file name is one plain path component: no separators, no `..`, nothing hidden.
-_FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}")
 _ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 # Fleet and agent names: the rule of fleet.spec.names.key_name_problem, repeated here so that
 # `fleet status` need not import the spec package (start-up time); a test checks they agree.
@@ -169,35 +167,6 @@ def _check_ros_name(value: str) -> str:
     if not _ROS_TOKEN.fullmatch(value):
         raise ValueError(f"{value!r} is not a valid ROS name")
     return value
-
-
-def check_file_name(name: str) -> str:
-    """A bundle file name must stay inside the unit directory: one plain component."""
-    if not isinstance(name, str) or not _FILE_NAME.fullmatch(name) or ".." in name:
-        raise ValueError(f"file name {name!r} is not a plain file name (no '/', no '..', no leading '.')")
-    return name
-
-
-def files_problem(files: Mapping[str, str]) -> str | None:
-    """Why an agent refuses a bundle of these files (too many, too large, a name that is not one
-    plain file name), or None.  `fleet render` asks it too, so what renders is delivered."""
-    if len(files) > MAX_FILES_PER_BUNDLE:
-        return f"{len(files)} files, more than {MAX_FILES_PER_BUNDLE}"
-    for name, text in files.items():
-        try:
-            check_file_name(name)
-        except ValueError as error:
-            return str(error)
-        if len(text) * 4 > MAX_FILE_BYTES and len(text.encode()) > MAX_FILE_BYTES:  # UTF-8: at most 4 bytes a character
-            return f"file {name!r} is larger than {MAX_FILE_BYTES} bytes"
-    return None
-
-
-def apply_size_bound(bundle_json_sizes: Iterable[int]) -> int:
-    """At least the bytes of an ApplyRequest carrying bundles whose files, as JSON, have these
-    sizes (the `dds` transport: `zenoh` adds the bridge's routes): `fleet render` compares it
-    with MAX_MESSAGE_BYTES without building the message."""
-    return 4096 + sum(512 + size for size in bundle_json_sizes)  # the request's and each bundle's own fields
 
 
 class Message(BaseModel):

@@ -12,7 +12,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from fleet.control.protocol import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
+from fleet.control.limits import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
 from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
@@ -476,7 +476,7 @@ def _check_files(spec: FleetSpec, bundle: Bundle) -> None:
 
 
 def _check_deliverable(spec: FleetSpec, bundles: list[Bundle]) -> None:
-    """Every bundle, and every agent's share of them, is small enough for the agents (fleet.control.protocol)."""
+    """Every bundle, and every agent's share of them, is small enough for the agents (fleet.control.limits)."""
     by_agent: dict[str, list[Bundle]] = {}
     for bundle in bundles:
         if bundle.kind == "robot":

@@ -80,7 +80,7 @@ class ParameterLayers:
 
     def copy(self) -> ParameterLayers:
         other = ParameterLayers()
-        other.history = {key: list(settings) for key, settings in self.history.items()}
+        other.history = dict(self.history)  # the lists are shared: set() replaces a list, never appends to one
         other.template_defaults = self.template_defaults
         other.origin = self
         return other
@@ -97,9 +97,9 @@ class ParameterLayers:
 
     def set(self, node: str, name: str, value: Any, layer: str, source: str | Callable[[], str]) -> None:
         self.changed.add(node)
-        settings = self.history.setdefault((node, name), [])
+        settings = self.history.get((node, name), [])
         reference = settings[0].value if settings else None
-        settings.append(Setting(normalize(coerce_like(value, reference)), layer, source))
+        self.history[(node, name)] = [*settings, Setting(normalize(coerce_like(value, reference)), layer, source)]
 
     def effective(self) -> dict[str, dict[str, Any]]:
         """node -> dotted parameter name -> winning value."""

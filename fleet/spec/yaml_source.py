@@ -204,7 +204,9 @@ class _Composer:
                 self.values += 1
                 if self.values > MAX_VALUES:
                     raise self._too_many(event, alias=False)
-                value, size = self._scalar(event, loader), 1
+                value, size = event.value, 1
+                if event.tag is not None or (event.implicit[0] and (not value or value[0] in _TYPED_FIRST)):
+                    value = self._scalar(event, loader)  # anything but a plain string (see _scalar)
                 if event.anchor is not None:
                     self.anchors[event.anchor] = (value, size)
                 if record:

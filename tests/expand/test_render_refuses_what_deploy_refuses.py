@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.control import protocol
+from fleet.control import limits, protocol
 from fleet.errors import SpecError
 from fleet.expand import expand_fleet
 from fleet.spec import parse_spec
@@ -97,11 +97,9 @@ def test_a_world_description_an_agent_would_refuse_is_refused():
 
 
 def test_more_robots_on_an_agent_than_it_accepts_are_refused():
-    robots = [f"{{name: r{i}, pose: {{x: {i}}}}}" for i in range(protocol.MAX_BUNDLES)]  # and the world: one more
-    agents = f"agents: {{local: {{max_robots: {protocol.MAX_BUNDLES}}}}}\n"  # the spec allows it; an agent does not
-    with pytest.raises(
-        SpecError, match=f"agent local would run {protocol.MAX_BUNDLES + 1} units; an agent runs at most"
-    ):
+    robots = [f"{{name: r{i}, pose: {{x: {i}}}}}" for i in range(limits.MAX_BUNDLES)]  # and the world: one more
+    agents = f"agents: {{local: {{max_robots: {limits.MAX_BUNDLES}}}}}\n"  # the spec allows it; an agent does not
+    with pytest.raises(SpecError, match=f"agent local would run {limits.MAX_BUNDLES + 1} units; an agent runs at most"):
         expand_fleet(parse_spec(spec_text(robots, agents=agents), "f.yaml"))
     # With the default limit, the spec's own check comes first.
     with pytest.raises(SpecError, match="agent 'local' holds at most 300 robots"):
@@ -132,4 +130,4 @@ def test_the_size_bound_is_above_the_real_message():
         domain_id=0,
         bundles=[protocol.BundleMessage.from_bundle(bundle) for bundle in expansion.bundles],
     )
-    assert len(protocol.encode(request)) <= protocol.apply_size_bound(bundle.json_size for bundle in expansion.bundles)
+    assert len(protocol.encode(request)) <= limits.apply_size_bound(bundle.json_size for bundle in expansion.bundles)

@@ -101,6 +101,19 @@ def test_shared_parameter_sections_are_each_robots_own(spec):
         assert params[f"{namespace}/safety"]["ros__parameters"]["safety_distance"] == safety_distance
 
 
+def test_digests_are_those_of_the_files_themselves(spec):
+    """Bundle JSON made once for the digest and the message size is the digest of the files
+    (what agents compare to decide on restarts)."""
+    import hashlib
+    import json
+
+    for bundle in expand_fleet(spec).bundles:
+        cold = {name: text for name, text in sorted(bundle.files.items()) if name not in bundle.hot_files}
+        payload = {"entry": bundle.entry, "options": dict(sorted(bundle.options.items())), "files": cold}
+        assert bundle.digest == hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+        assert bundle.json_size >= sum(len(json.dumps(text)) for text in bundle.files.values())
+
+
 def plan_of(expansion, name: str):
     plan = expansion.robot(name)
     assert plan is not None, name

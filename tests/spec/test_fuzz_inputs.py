@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import os
 import re
+import tempfile
+
+# Hypothesis keeps a cache in its home directory (./.hypothesis by default): not in the checkout.
+os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", os.path.join(tempfile.gettempdir(), "fleet-hypothesis"))
 
 import yaml
 from hypothesis import HealthCheck, event, given, settings
