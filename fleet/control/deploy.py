@@ -15,7 +15,6 @@ from fleet.control import protocol as p
 from fleet.control.client import ControlClient
 from fleet.control.view import FleetView, RobotRow, build_view
 from fleet.dataplane.discovery import DiscoveryPlan, local_servers, plan_discovery
-from fleet.dataplane.topics import bridge_routes
 from fleet.errors import ControlError
 
 if TYPE_CHECKING:
@@ -56,12 +55,11 @@ def requests_for(
     ]
     if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
         servers = local_servers(sorted({b.agent for b in expansion.bundles}), expansion.domain_id)
-        routes = bridge_routes(_world_agent(expansion), [(r.name, r.namespace, r.agent) for r in expansion.robots])
         for request in requests:
             request.transport = "zenoh"
             request.discovery_server = servers.get(request.agent)
             request.discovery_host = request.agent if request.discovery_server else None
-            request.bridge = routes.get(request.agent, p.BridgeRoutes())
+            request.bridge = expansion.bridge.get(request.agent, p.BridgeRoutes())
     return requests
 
 

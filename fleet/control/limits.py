@@ -44,6 +44,6 @@ def files_problem(files: Mapping[str, str]) -> str | None:
 
 def apply_size_bound(bundle_json_sizes: Iterable[int]) -> int:
     """At least the bytes of an ApplyRequest carrying bundles whose files, as JSON, have these
-    sizes (the `dds` transport: `zenoh` adds the bridge's routes): `fleet render` compares it
+    sizes (with the `zenoh` transport, add the bridge routes' JSON): `fleet render` compares it
     with MAX_MESSAGE_BYTES without building the message."""
     return 4096 + sum(512 + size for size in bundle_json_sizes)  # the request's and each bundle's own fields

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field
 
-MAX_ROUTES = 5000  # far above 5 topics for each of a fleet's robots
+MAX_ROUTES = 5000  # one way, per agent: the world's agent carries 3 for each robot elsewhere (render checks)
 
 
 class TopicRoute(BaseModel):

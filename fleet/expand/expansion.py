@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from fleet.control.limits import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
+from fleet.dataplane.topics import MAX_ROUTES, BridgeRoutes, bridge_routes
 from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
@@ -55,6 +56,7 @@ class Expansion:
     spec: FleetSpec
     robots: list[RobotPlan]
     bundles: list[Bundle]
+    bridge: dict[str, BridgeRoutes] = field(default_factory=dict)  # per agent, with the `zenoh` transport
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -128,8 +130,9 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     bundles = [_robot_bundle(spec, plan, sections) for plan in robots]
     if spec.world is not None:
         bundles.append(_world_bundle(spec, templates))
-    _check_deliverable(spec, bundles)
-    return Expansion(spec=spec, robots=robots, bundles=bundles, warnings=sorted(set(warnings)))
+    bridge = _bridge_routes(spec, bundles, robots)
+    _check_deliverable(spec, bundles, bridge)
+    return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=sorted(set(warnings)))
 
 
 def _plan_robot(
@@ -475,21 +478,38 @@ def _check_files(spec: FleetSpec, bundle: Bundle) -> None:
         )
 
 
-def _check_deliverable(spec: FleetSpec, bundles: list[Bundle]) -> None:
-    """Every bundle, and every agent's share of them, is small enough for the agents (fleet.control.limits)."""
+def _check_deliverable(spec: FleetSpec, bundles: list[Bundle], routes: dict[str, BridgeRoutes]) -> None:
+    """Every bundle, and every agent's share of them with its bridge's routes, is small enough
+    for the agents (fleet.control.limits, fleet.dataplane.topics)."""
     by_agent: dict[str, list[Bundle]] = {}
     for bundle in bundles:
         if bundle.kind == "robot":
             _check_files(spec, bundle)
         by_agent.setdefault(bundle.agent, []).append(bundle)
     for agent, group in by_agent.items():
-        size = apply_size_bound(bundle.json_size for bundle in group)
+        agent_routes = routes.get(agent)
+        route_bytes = len(agent_routes.model_dump_json()) if agent_routes else 0
+        if agent_routes and (count := max(len(agent_routes.exports), len(agent_routes.imports))) > MAX_ROUTES:
+            raise SpecError(
+                f"agent {agent}'s Zenoh bridge would carry {count} topics one way; an agent carries at most "
+                f"{MAX_ROUTES}: put more robots on the world's agent, or use transport dds",
+                _spec_location(spec, ("ros", "transport")),
+            )
+        size = apply_size_bound(bundle.json_size for bundle in group) + route_bytes
         if size > MAX_MESSAGE_BYTES:
             raise SpecError(
                 f"agent {agent}'s {len(group)} units make a deploy message of up to {size / 2**20:.1f} MiB; "
                 f"an agent accepts {MAX_MESSAGE_BYTES / 2**20:.0f} MiB: spread the robots over more agents",
                 _spec_location(spec, ("agents", agent)),
             )
+
+
+def _bridge_routes(spec: FleetSpec, bundles: list[Bundle], robots: list[RobotPlan]) -> dict[str, BridgeRoutes]:
+    """The topics each agent's bridge will carry (the `zenoh` transport sends them with the deploy)."""
+    if spec.ros.transport != "zenoh":
+        return {}
+    world_agent = next((bundle.agent for bundle in bundles if bundle.kind == "world"), None)
+    return bridge_routes(world_agent, [(robot.name, robot.namespace, robot.agent) for robot in robots])
 
 
 def _check_units_per_agent(spec: FleetSpec) -> None:

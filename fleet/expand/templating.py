@@ -4,14 +4,25 @@ Templates are Jinja2 in a sandboxed environment with StrictUndefined.  Every `{{
 through `yaml_literal` (the environment's finalize hook), which emits a quoted YAML/JSON literal:
 a robot name or argument value containing quotes, newlines or YAML syntax comes out as one inert
 string and can never add an action or a node to the launch file.
+
+A rendering is also bounded: Jinja's sandbox stops unsafe attribute access and caps range(), but
+a template could still repeat a string a billion times, raise a number to a million digits, ask
+a filter to pad to a gigabyte, or loop without end.  Those are refused with the template's name
+(_BoundedEnvironment), output past MAX_OUTPUT_CHARS is refused, and a rendering is stopped after
+MAX_RENDER_SECONDS (on the main thread, where the CLI renders: the timer is a signal).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib.resources
 import json
 import math
+import signal
+import threading
 import traceback
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,9 +33,13 @@ from jinja2.sandbox import ImmutableSandboxedEnvironment
 
 from fleet.errors import Location, TemplateError
 from fleet.spec.names import template_name_problem
+from fleet.spec.yaml_source import MAX_TEXT_CHARS
 
 TEMPLATE_SUFFIX = ".launch.yaml.j2"
 DEFAULTS_SUFFIX = ".params.yaml"
+MAX_OUTPUT_CHARS = MAX_TEXT_CHARS  # a rendered launch file is read back as fleet's own input
+MAX_RENDER_SECONDS = 5.0  # a real template renders in about a millisecond
+MAX_POWER_BITS = 4096  # far beyond an int64 parameter, far below a number that takes seconds to make
 
 
 def builtin_template_dirs() -> list[Path]:
@@ -72,6 +87,97 @@ def argument_problem(value: Any, default: Any) -> str | None:
     return None  # text, or declared by the template without arg(): any value is written as text
 
 
+class _TooCostly(jinja2.exceptions.SecurityError):
+    """A rendering asked for more than a launch file could ever need."""
+
+
+class _RenderTimeout(Exception):
+    pass
+
+
+def _count_problem(value: Any) -> str | None:
+    """Why a number given to a filter, function or repetition is too large to be a size, or None."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_OUTPUT_CHARS:
+        return f"a count or width of {value} is larger than a launch file can be ({MAX_OUTPUT_CHARS} characters)"
+    return None
+
+
+def _bounded(function: Callable[..., Any]) -> Callable[..., Any]:
+    """A filter or test that refuses sizes no launch file needs before doing the work."""
+
+    @functools.wraps(function)  # keeps Jinja's pass_context/pass_environment markers
+    def checked(*args: Any, **kwargs: Any) -> Any:
+        for value in (*args, *kwargs.values()):
+            if problem := _count_problem(value):
+                raise _TooCostly(problem)
+        return function(*args, **kwargs)
+
+    return checked
+
+
+def _power_bits(base: Any, exponent: Any) -> int:
+    """About how many bits `base ** exponent` has (0 for what cannot grow: floats, 0, 1, -1, negative powers)."""
+    if not (isinstance(base, int) and isinstance(exponent, int)) or abs(base) < 2 or exponent < 1:
+        return 0
+    return exponent * (abs(base).bit_length() - 1)
+
+
+class _BoundedEnvironment(ImmutableSandboxedEnvironment):
+    intercepted_binops = frozenset({"*", "**"})
+
+    def __init__(self, **options: Any) -> None:
+        super().__init__(**options)
+        self.filters = {name: _bounded(function) for name, function in self.filters.items()}
+
+    def call_binop(self, context: jinja2.runtime.Context, operator: str, left: Any, right: Any) -> Any:
+        if operator == "**" and _power_bits(left, right) > MAX_POWER_BITS:
+            raise _TooCostly(f"{left} ** {right} has more than {MAX_POWER_BITS} bits")
+        if operator == "*":
+            for count, other in ((left, right), (right, left)):
+                repeated = isinstance(count, int) and isinstance(other, (str, list, tuple))
+                if repeated and count * len(other) > MAX_OUTPUT_CHARS:
+                    raise _TooCostly(f"{len(other)} items repeated {count} times are larger than a launch file can be")
+        return super().call_binop(context, operator, left, right)
+
+    def call(self, __context: jinja2.runtime.Context, __obj: Any, *args: Any, **kwargs: Any) -> Any:
+        for value in (*args, *kwargs.values()):
+            if problem := _count_problem(value):
+                raise _TooCostly(problem)
+        return super().call(__context, __obj, *args, **kwargs)
+
+
+@contextmanager
+def _time_limit(seconds: float) -> Iterator[None]:
+    """Interrupt the block after `seconds` (a signal, so only on the main thread; elsewhere no limit)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def expire(signum: int, frame: object) -> None:
+        raise _RenderTimeout
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _render_bounded(template: jinja2.Template, context: dict[str, Any], seconds: float) -> str:
+    """The template's text, refused past MAX_OUTPUT_CHARS or `seconds`."""
+    chunks: list[str] = []
+    size = 0
+    with _time_limit(seconds):
+        for chunk in template.generate(context):
+            size += len(chunk)
+            if size > MAX_OUTPUT_CHARS:
+                raise _TooCostly(f"its output is larger than {MAX_OUTPUT_CHARS} characters")
+            chunks.append(chunk)
+    return "".join(chunks)
+
+
 @dataclass
 class RenderedTemplate:
     text: str
@@ -82,9 +188,10 @@ class RenderedTemplate:
 class TemplateSet:
     """The template directories a spec can use: its own first, then the built-in ones."""
 
-    def __init__(self, directories: list[Path]):
+    def __init__(self, directories: list[Path], render_seconds: float = MAX_RENDER_SECONDS):
         self.directories = [Path(d) for d in directories]
-        self._environment = ImmutableSandboxedEnvironment(
+        self.render_seconds = render_seconds
+        self._environment = _BoundedEnvironment(
             loader=jinja2.FileSystemLoader([str(d) for d in self.directories]),
             undefined=jinja2.StrictUndefined,
             finalize=yaml_literal,
@@ -155,7 +262,7 @@ class TemplateSet:
 
         try:
             template = self._environment.get_template(path.name)  # the loader searches in the same order as find()
-            text = template.render({**context, "arg": arg})
+            text = _render_bounded(template, {**context, "arg": arg}, self.render_seconds)
         except jinja2.TemplateSyntaxError as error:
             raise TemplateError(
                 f"template syntax error: {error.message}", Location(error.filename or path, error.lineno)
@@ -164,6 +271,14 @@ class TemplateSet:
             raise TemplateError(
                 f"{error.message} (available: {', '.join([*sorted(context), 'arg'])})",
                 Location(path, _template_line(error, path)),
+            ) from None
+        except _RenderTimeout:
+            raise TemplateError(
+                f"template took more than {self.render_seconds:g} s to render (a loop without end?)", Location(path)
+            ) from None
+        except _TooCostly as error:
+            raise TemplateError(
+                f"template asks for too much: {error}", Location(path, _template_line(error, path))
             ) from None
         except jinja2.exceptions.SecurityError as error:
             raise TemplateError(

@@ -131,3 +131,39 @@ def test_the_size_bound_is_above_the_real_message():
         bundles=[protocol.BundleMessage.from_bundle(bundle) for bundle in expansion.bundles],
     )
     assert len(protocol.encode(request)) <= limits.apply_size_bound(bundle.json_size for bundle in expansion.bundles)
+
+
+ZENOH = "fleet: demo\nros: {transport: zenoh}\nworld: {agent: sim}\n"
+
+
+def test_the_size_bound_counts_the_zenoh_bridge_routes():
+    """With the `zenoh` transport a deploy message also carries the agent's bridge routes; the
+    bound render checks is above each real message, routes included."""
+    from fleet.control.deploy import requests_for
+
+    agents = "agents: {sim: {}, rack: {}}\n"
+    robots = "robots:\n" + "".join(f"  - {{name: r{i}, agent: rack, pose: {{x: {i}}}}}\n" for i in range(40))
+    expansion = expand_fleet(parse_spec(ZENOH + agents + robots, "f.yaml"))
+    assert len(expansion.bridge["sim"].exports) == 1 + 3 * 40  # /clock and each robot's odom, scan, ground_truth
+    for request in requests_for(expansion, generation=1, serving=set()):
+        assert request.bridge.exports or request.bridge.imports
+        group = [bundle for bundle in expansion.bundles if bundle.agent == request.agent]
+        without_routes = limits.apply_size_bound(bundle.json_size for bundle in group)
+        size = len(protocol.encode(request))
+        assert size <= without_routes + len(expansion.bridge[request.agent].model_dump_json())
+        if request.agent == "sim":  # the world alone: its routes are most of the message
+            assert size > without_routes
+
+
+def test_more_bridge_routes_than_an_agent_carries_are_refused():
+    """The world's agent bridges three topics for every robot elsewhere: past MAX_ROUTES the
+    agent would refuse the deploy message, so render refuses the spec, at ros.transport."""
+    per_rack = 900  # 1,800 robots elsewhere: 5,401 routes out of the world's agent
+    agents = "agents: {sim: {}, " + ", ".join(f"rack{k}: {{max_robots: {per_rack}}}" for k in (1, 2)) + "}\n"
+    robots = "robots:\n" + "".join(
+        f"  - {{name: r{i}, agent: rack{1 + i // per_rack}, pose: {{x: {i}}}}}\n" for i in range(2 * per_rack)
+    )
+    with pytest.raises(SpecError, match=r"f.yaml:2:7: agent sim's Zenoh bridge would carry 5401 topics one way"):
+        expand_fleet(parse_spec(ZENOH + agents + robots, "f.yaml"))
+    dds = (ZENOH + agents + robots).replace("transport: zenoh", "transport: dds")
+    expand_fleet(parse_spec(dds, "f.yaml"))  # the same fleet bridges nothing with dds

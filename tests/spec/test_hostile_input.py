@@ -145,6 +145,48 @@ def test_missing_include_and_self_include_in_a_template(tmp_path, capsys):
         assert f"{templates / name}.launch.yaml.j2" in line and expected in line, line
 
 
+@pytest.mark.parametrize(
+    "body, expected",
+    [
+        ('{{ "x" * 1000000000 }}', "items repeated 1000000000 times are larger than a launch file can be"),
+        ("{{ 10 ** 10000000 }}", "10 ** 10000000 has more than 4096 bits"),
+        ('{{ "x" | center(1000000000) }}', "a count or width of 1000000000 is larger than a launch file can be"),
+        ('{% for i in range(100000) %}{{ "x" * 1000 }}{% endfor %}', "its output is larger than 16777216 characters"),
+    ],
+)
+def test_a_template_that_asks_for_too_much(tmp_path, capsys, body, expected):
+    """Memory bombs in a template are refused before they are built (or, for output, as it grows)."""
+    templates = tmp_path / "my_templates"
+    templates.mkdir()
+    (templates / "greedy.launch.yaml.j2").write_text(f"launch:\n# {body}\n")
+    started = time.monotonic()
+    line = refused(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: greedy}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert f"{templates / 'greedy'}.launch.yaml.j2:2:" in line or f"{templates / 'greedy'}.launch.yaml.j2:" in line, (
+        line
+    )
+    assert "template asks for too much" in line and expected in line, line
+    assert time.monotonic() - started < 30  # refused at once, not after building gigabytes
+
+
+def test_a_template_that_never_ends_is_stopped(tmp_path):
+    """A loop of ten billion empty steps is stopped at the time limit, with the template's name."""
+    from fleet.errors import Location, TemplateError
+    from fleet.expand.templating import TemplateSet
+
+    (tmp_path / "endless.launch.yaml.j2").write_text(
+        "launch:\n{% for i in range(100000) %}{% for j in range(100000) %}{% endfor %}{% endfor %}\n"
+    )
+    templates = TemplateSet([tmp_path], render_seconds=0.5)
+    started = time.monotonic()
+    with pytest.raises(TemplateError, match=r"endless.launch.yaml.j2: template took more than 0.5 s to render"):
+        templates.render("endless", {}, {}, Location("spec.yaml"))
+    assert time.monotonic() - started < 20
+
+
 def test_templates_directory_that_is_missing(tmp_path, capsys):
     line = refused(tmp_path, capsys, "fleet: demo\ntemplates: nowhere\nrobots: [{name: r1}]\n")
     assert f"{tmp_path / 'fleet.yaml'}:2:" in line and "templates directory nowhere does not exist" in line
