@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> None:
         command = error.ctx.command_path if getattr(error, "ctx", None) else "fleet"
         print_error(FleetError(f"{command}: {error.format_message()}", Location(COMMAND_LINE)))
         sys.exit(EXIT_USAGE)
-    except (click.Abort, EOFError):
+    except (typer.Abort, EOFError):
         sys.exit(EXIT_FAILURE)
     except KeyboardInterrupt:
         sys.exit(130)

@@ -23,6 +23,7 @@ Timestamps (`2024-05-01`) stay strings, as ROS's own parameter parser reads them
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -101,7 +102,11 @@ def read_input(path: Path, what: str) -> str:
     """The text of an input file named by the user, refused when it is not readable UTF-8 text
     or longer than MAX_TEXT_CHARS (read in bounded size, so /dev/zero cannot fill the memory)."""
     try:
-        with open(path, "rb") as stream:
+        # Opened without waiting, then read as usual: a named pipe that nobody writes to reads as
+        # empty instead of blocking for ever (a pipe being written, as from `<(...)`, still reads).
+        descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        os.set_blocking(descriptor, True)
+        with open(descriptor, "rb") as stream:
             data = stream.read(MAX_TEXT_CHARS + 1)
     except FileNotFoundError:
         raise YamlError(f"no such {what} file", Location(path)) from None

@@ -103,3 +103,31 @@ def test_status_file_nested_too_deeply(tmp_path, capsys):
     status.write_text("[" * 100_000 + "]" * 100_000)
     line = one_error_line(capsys, ["snapshot", "--status-file", str(status), "-o", str(tmp_path / "w.png")])
     assert "no readable world status" in line
+
+
+def test_a_named_pipe_nobody_writes_to_is_read_as_empty(tmp_path, capsys):
+    """Reading waits for no writer: a FIFO given as the spec is refused at once, not a hang."""
+    import os
+
+    fifo = tmp_path / "spec.yaml"
+    os.mkfifo(fifo)
+    line = one_error_line(capsys, ["render", str(fifo)])
+    assert f"{fifo}:1:1: a fleet spec is a mapping" in line
+
+
+def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
+    """`fleet render SPEC | head -1`: the reader leaves early; fleet stops without a traceback."""
+    import subprocess
+    import sys
+
+    spec = tmp_path / "many.yaml"  # a table far longer than a pipe holds, so writing it meets the closed pipe
+    spec.write_text("fleet: many\nrobots:\n" + "".join(f"  - {{name: r{i}, pose: {{x: {i}}}}}\n" for i in range(250)))
+    result = subprocess.run(
+        f"{sys.executable} -m fleet render {spec} | head -c 10",
+        shell=True,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert len(result.stdout) == 10
+    assert "Traceback" not in result.stderr and "Error" not in result.stderr, result.stderr
