@@ -10,12 +10,14 @@ endpoints always win, and the mode is always the process's role.
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fleet.errors import ControlError, FleetError, Location
+from fleet.errors import COMMAND_LINE, ControlError, FleetError, Location
 
 if TYPE_CHECKING:
     import threading
@@ -27,6 +29,44 @@ ENDPOINT_VARIABLE = "FLEET_CONNECT"
 CONFIG_VARIABLE = "FLEET_ZENOH_CONFIG"
 AGENT_LEASE_MS = 2000  # link lease of agents: a frozen agent is dropped after 2 s (default 10 s)
 ROUTER_LEASE_MS = 2000
+
+
+# Zenoh's endpoint form: PROTOCOL/ADDRESS[?METADATA][#CONFIG]; the IP protocols' address is HOST:PORT.
+_ENDPOINT = re.compile(r"(?P<protocol>[a-z][a-z0-9-]*)/(?P<address>[^?#]+)(?:\?[^#]*)?(?:#.*)?")
+_IP_PROTOCOLS = frozenset({"tcp", "udp", "tls", "quic", "ws"})
+_HOST_NAME = re.compile(
+    r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*"
+)
+EXAMPLE = "tcp/10.0.0.1:7447"
+
+
+def endpoint_problem(endpoint: str) -> str | None:
+    """Why `endpoint` is not a Zenoh endpoint fleet can use, or None (port 0: any free port)."""
+    match = _ENDPOINT.fullmatch(endpoint)
+    if match is None:
+        return f"endpoint {endpoint!r} is not PROTOCOL/HOST:PORT (such as {EXAMPLE})"
+    if match["protocol"] not in _IP_PROTOCOLS:
+        return None  # unix sockets, serial lines, ...: Zenoh checks its own
+    host, colon, port = match["address"].rpartition(":")
+    if not colon or not port.isdigit() or int(port) > 65535:
+        return f"endpoint {endpoint!r} has no port from 0 to 65535 (such as {EXAMPLE})"
+    try:
+        if host.startswith("[") and host.endswith("]"):
+            ipaddress.IPv6Address(host[1:-1])
+        elif re.fullmatch(r"[0-9.]+", host):
+            ipaddress.IPv4Address(host)
+        elif not _HOST_NAME.fullmatch(host):
+            return f"endpoint {endpoint!r}: {host!r} is not a host name or an IP address"
+    except ValueError:
+        return f"endpoint {endpoint!r}: {host!r} is not an IP address"
+    return None
+
+
+def _checked(endpoints: list[str]) -> list[str]:
+    for endpoint in endpoints:
+        if problem := endpoint_problem(endpoint):
+            raise FleetError(problem, Location(COMMAND_LINE))
+    return endpoints
 
 
 def default_endpoint() -> str:
@@ -83,7 +123,7 @@ def router_config(listen: list[str], user_config: Path | None = None):
     config = _base_config(user_config)
     config.insert_json5("mode", '"router"')
     if listen:
-        config.insert_json5("listen/endpoints", json.dumps(listen))
+        config.insert_json5("listen/endpoints", json.dumps(_checked(listen)))
     else:
         _set_unless_user_set(config, "listen/endpoints", [DEFAULT_ENDPOINT])
     _common(config, ROUTER_LEASE_MS)
@@ -94,7 +134,7 @@ def client_config(connect: list[str], user_config: Path | None = None, lease_ms:
     config = _base_config(user_config)
     config.insert_json5("mode", '"client"')
     if connect:
-        config.insert_json5("connect/endpoints", json.dumps(connect))
+        config.insert_json5("connect/endpoints", json.dumps(_checked(connect)))
     else:
         _set_unless_user_set(config, "connect/endpoints", [default_endpoint()])
     _common(config, lease_ms)

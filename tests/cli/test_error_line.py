@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from fleet.errors import MAX_LINE, FleetError, Location, one_line
+from tests.checkout import FLEETS
 from tests.spec.test_bad_input import run_cli
 
 BOMB = "launch:\n" + "".join(
@@ -131,3 +132,19 @@ def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
     )
     assert len(result.stdout) == 10
     assert "Traceback" not in result.stderr and "Error" not in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["status", "--connect", "not an address"], "endpoint 'not an address' is not PROTOCOL/HOST:PORT"),
+        (["status", "--connect", "tcp/999.1.1.1:7447"], "'999.1.1.1' is not an IP address"),
+        (["status", "--connect", "tcp/10.0.0.1"], "has no port from 0 to 65535"),
+        (["deploy", str(FLEETS / "two_robots.yaml"), "--connect", "tcp/[::1]:70000"], "has no port from 0 to 65535"),
+        (["router", "--listen", "tcp/bad_host!:7447"], "'bad_host!' is not a host name or an IP address"),
+    ],
+)
+def test_an_endpoint_that_is_not_an_address(capsys, args, expected):
+    """Refused before any connection is tried: one line, exit 2, and nothing deployed."""
+    line = one_error_line(capsys, args)
+    assert line.startswith("fleet: error: <command line>: ") and expected in line, line
