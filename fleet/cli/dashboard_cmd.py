@@ -19,7 +19,7 @@ def dashboard(
         "--host",
         help="Address to serve on; other than loopback, other computers see the fleet (no login).",
     ),
-    port: int = typer.Option(8080, "--port", "-p", help="Port to serve on; 0 picks a free one."),
+    port: int = typer.Option(8080, "--port", "-p", min=0, max=65535, help="Port to serve on; 0 picks a free one."),
     fleet: str | None = typer.Option(None, "--fleet", "-f", help="Only this fleet."),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,

@@ -50,6 +50,7 @@ def test_an_error_without_a_file_is_one_in_the_command_line():
         (["render", "x.yaml", "--format", "xml"], "Invalid value for '--format'"),
         (["deploy", "x.yaml", "--timeout", "soon"], "Invalid value for '--timeout'"),
         (["nosuchcommand"], "No such command 'nosuchcommand'"),
+        (["dashboard", "--port", "99999"], "Invalid value for '--port'"),  # before connecting anywhere
     ],
 )
 def test_usage_errors_are_one_line(capsys, args, expected):
