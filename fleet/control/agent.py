@@ -53,9 +53,10 @@ log = logging.getLogger("fleet.agent")
 PARAM_TIMEOUT = 30.0  # a loaded host needs seconds for rclpy start-up and discovery
 DESIRED_POLL = 3.0  # how often to ask the router for desired states newer than ours
 DESIRED_TIMEOUT = 5.0
-# Desired-state queries in a row that time out while the router is connected: the session has
+# Desired-state queries in a row that the connected router does not answer: the session has
 # stalled (seen after a link to the router dropped and came back: Zenoh reconnected, but queries
-# to and from this session went unanswered), so it is replaced by a new one.
+# to and from this session went unanswered, timing out or ending at once with no reply, as in
+# eclipse-zenoh/zenoh#2767), so it is replaced by a new one.
 STALLED_FETCHES = 2
 
 
@@ -128,15 +129,7 @@ class Agent:
             if self._session is not None:
                 self._declare(self._session)
                 log.info("agent %s serving on %s", self.name, ", ".join(self.connect))
-                next_fetch, stalled = 0.0, 0
-                while not self.stop_event.is_set():
-                    if time.monotonic() >= next_fetch:
-                        stalled = 0 if self._fetch_desired(self._session) else stalled + 1
-                        next_fetch = time.monotonic() + DESIRED_POLL
-                        if stalled >= STALLED_FETCHES:
-                            self._reopen_session()
-                            stalled = 0
-                    self.stop_event.wait(0.5)  # a timed wait lets signal handlers run
+                self._serve()
         finally:
             self.stop_event.set()
             session, self._session = self._session, None
@@ -149,6 +142,19 @@ class Agent:
             self._work.put(None)
             worker.join()
             services.join()
+
+    def _serve(self) -> None:
+        """Until stopped: fetch desired states every DESIRED_POLL seconds, and replace the session
+        when the connected router stops answering (STALLED_FETCHES in a row)."""
+        next_fetch, stalled = 0.0, 0
+        while not self.stop_event.is_set() and self._session is not None:
+            if time.monotonic() >= next_fetch:
+                stalled = 0 if self._fetch_desired(self._session) else stalled + 1
+                next_fetch = time.monotonic() + DESIRED_POLL
+                if stalled >= STALLED_FETCHES:
+                    self._reopen_session()
+                    stalled = 0
+            self.stop_event.wait(min(0.5, DESIRED_POLL))  # a timed wait lets signal handlers run
 
     def _restore(self) -> None:
         fleets, problems = self.store.load()
@@ -245,7 +251,8 @@ class Agent:
     def _fetch_desired(self, session) -> bool:
         """Apply what the router stored for us if it is newer than what we hold (a deploy or a
         `fleet down` made while we were away).  Bad data is logged and leaves our state alone.
-        False when the query timed out (the router is connected but nothing came back)."""
+        False when the router is connected but did not answer: its answer always includes
+        DesiredDone, so a query that times out or gets no reply at all means the session stalled."""
         import zenoh
 
         with self._lock:
@@ -258,12 +265,13 @@ class Agent:
                 consolidation=zenoh.ConsolidationMode.NONE,
                 timeout=DESIRED_TIMEOUT,
             )
-            answered = True
+            answered = False
             for reply in replies:
                 if reply.ok is None:
-                    error = reply.err.payload.to_bytes()[:200]
-                    log.warning("router refused the desired-state query: %s", error)
-                    answered = answered and error != b"Timeout"
+                    log.warning("router refused the desired-state query: %s", reply.err.payload.to_bytes()[:200])
+                    continue
+                if p.fleet_of_key(reply.ok.key_expr) is None:  # the router's DesiredDone
+                    answered = True
                     continue
                 try:
                     request = self._check_apply(reply.ok.payload.to_bytes(), reply.ok.key_expr)
@@ -283,7 +291,7 @@ class Agent:
             log.debug("cannot fetch desired states: %s", error)
         except Exception:  # never let this take the agent down: the next round tries again
             log.exception("fetching desired states failed")
-        else:  # without a router connected a timeout says nothing about the session
+        else:  # without a router connected, silence says nothing about the session
             return answered or not list(session.info.routers_zid())
         return True
 

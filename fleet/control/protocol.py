@@ -598,6 +598,15 @@ class DesiredQuery(Message):
     held: dict[str, int] = {}  # fleet -> generation the agent holds
 
 
+class DesiredDone(Message):
+    """The router's reply to every DesiredQuery besides the states, on `fleet/*/desired/<agent>`: the router
+    heard the agent.  A query that gets no reply at all while the router is connected means the
+    agent's session has stalled (fleet.control.agent replaces it)."""
+
+    kind: Literal["desired_done"] = "desired_done"
+    sent: int = Field(0, ge=0)  # desired states sent before this reply
+
+
 class ErrorReply(Message):
     kind: Literal["error"] = "error"
     code: str

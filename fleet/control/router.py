@@ -136,6 +136,7 @@ class Registry:
             ]
         for key, payload in replies:
             query.reply(key, payload)
+        query.reply(str(query.key_expr), p.encode(p.DesiredDone(sent=len(replies))))
 
     def on_query(self, query) -> None:
         wanted = p.fleet_of_key(query.key_expr)

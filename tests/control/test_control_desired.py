@@ -123,3 +123,29 @@ def test_bad_desired_states_are_ignored(fresh_cluster):
         (r.name, r.state, r.generation) for r in before.robots
     ]
     assert "ignoring desired state" in cluster.log("router")
+
+
+def test_the_router_ends_every_desired_state_answer(fresh_cluster):
+    """It always adds a DesiredDone reply, also when nothing is newer: an agent that gets no reply at all
+    knows its session has stalled (fleet.control.agent), not that nothing changed."""
+    cluster = fresh_cluster
+    cluster.start_router()
+    stored = p.ApplyRequest(fleet="tiny", agent="hostA", generation=7, domain_id=cluster.domain_id, bundles=[])
+    with cluster.client() as client:
+
+        def answer(held: dict[str, int]) -> list[tuple[str, str]]:
+            query = p.encode(p.DesiredQuery(held=held))
+            replies = client.session.get(p.desired_key("*", "hostA"), payload=query, timeout=5)
+            return [(str(r.ok.key_expr), r.ok.payload.to_bytes().decode()) for r in replies if r.ok is not None]
+
+        # The router subscribes to desired states before it answers queries: once it answers, a put lands.
+        poll(lambda: answer({}), until=bool, timeout=10, what="the router to answer")
+        client.put_desired([stored])
+        newer = poll(lambda: answer({"tiny": 6}), until=lambda replies: len(replies) == 2, timeout=10, what="2 replies")
+        by_key = dict(newer)  # Zenoh does not keep the order of one query's replies
+        assert set(by_key) == {p.desired_key("tiny", "hostA"), p.desired_key("*", "hostA")}
+        assert p.decode(by_key[p.desired_key("tiny", "hostA")].encode(), p.ApplyRequest).generation == 7
+        assert p.decode(by_key[p.desired_key("*", "hostA")].encode(), p.DesiredDone).sent == 1
+        nothing_newer = answer({"tiny": 7})
+        assert [key for key, _ in nothing_newer] == [p.desired_key("*", "hostA")]
+        assert p.decode(nothing_newer[0][1].encode(), p.DesiredDone).sent == 0
