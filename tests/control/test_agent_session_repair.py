@@ -95,7 +95,7 @@ def serving(tmp_path, monkeypatch):
 
     def start(first: FakeSession) -> agent_module.Agent:
         agent = agent_module.Agent("rack_a", ["tcp/127.0.0.1:0"], tmp_path / "state", address="127.0.0.1")
-        agent._session = first
+        agent._session = first  # type: ignore[assignment]  # a stand-in session
         agent._declare(first)
         thread = threading.Thread(target=agent._serve, daemon=True)
         thread.start()
