@@ -474,6 +474,7 @@ class Agent:
             json.dumps(
                 {
                     "fleet": fleet,
+                    "agent": self.name,
                     "connect": self.connect,
                     "zenoh_config": str(self.zenoh_config) if self.zenoh_config else None,
                     "exports": [r.model_dump() for r in request.bridge.exports],

@@ -95,6 +95,12 @@ def world_key(fleet: str, agent: str) -> str:
     return f"fleet/{fleet}/agent/{agent}/world"
 
 
+def echo_keys(fleet: str, agent: str) -> tuple[str, str]:
+    """(ping, pong): the router puts every ping it receives back on the pong key, so a bridge
+    learns whether its publications and subscriptions really pass through the router."""
+    return f"fleet/{fleet}/agent/{agent}/echo/ping", f"fleet/{fleet}/agent/{agent}/echo/pong"
+
+
 def agent_status_key(fleet: str, agent: str) -> str:
     return f"fleet/{fleet}/status/agent/{agent}"
 

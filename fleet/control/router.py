@@ -162,7 +162,13 @@ class Registry:
 
 def serve_router(session, registry: Registry):
     """Declare the registry's entities on an open router session; returns them (keep them alive)."""
+
+    def echo(sample) -> None:  # the bridges' probe of their path through the router
+        _, fleet, _, agent, *_ = str(sample.key_expr).split("/")  # fleet/<fleet>/agent/<agent>/echo/ping
+        session.put(p.echo_keys(fleet, agent)[1], sample.payload)
+
     return [
+        session.declare_subscriber(p.echo_keys("*", "*")[0], echo),
         session.liveliness().declare_subscriber("fleet/*/alive/agent/*", registry.on_liveliness, history=True),
         session.declare_subscriber("fleet/*/plan", registry.on_plan),
         session.declare_queryable("fleet/*/status/registry", registry.on_query),

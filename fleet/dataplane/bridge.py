@@ -23,10 +23,14 @@ import logging
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
+from typing import Any
 
 log = logging.getLogger("fleet.bridge")
 STATS_PERIOD = 10.0  # s between the bridge's traffic lines in its log
+PROBE_PERIOD = 1.0  # s between probes of the path through the router
+ECHO_TIMEOUT = 5.0  # s without an echo, while a router is connected, before the session is replaced
 
 
 def message_class(type_name: str):
@@ -46,39 +50,88 @@ def ros_qos(route):
 
 
 class Bridge:
-    def __init__(self, fleet: str, exports, imports, session, node) -> None:
+    """The ROS side is made once; the Zenoh side can be made again on a new session (attach),
+    when the router stops echoing this bridge's probe (see main)."""
+
+    def __init__(self, fleet: str, agent: str, exports, imports, node) -> None:
+        self.fleet, self.agent = fleet, agent
+        self.exports, self.imports = list(exports), list(imports)
+        self.counts = {"out": 0, "in": 0}
+        self.last_echo = 0.0  # time.monotonic() of the router's last echo of our probe
+        self._zenoh: dict[str, Any] = {}  # exported topic -> its Zenoh publisher on the current session
+        self._keep: list[Any] = []  # the current session's subscribers and publishers
+        self._ros_publishers = {
+            route.name: node.create_publisher(message_class(route.type), route.name, ros_qos(route))
+            for route in self.imports
+        }
+        for route in self.exports:
+            node.create_subscription(
+                message_class(route.type), route.name, self._sender(route.name), ros_qos(route), raw=True
+            )
+
+    def attach(self, session) -> None:
+        """Declare the Zenoh side on `session` (replacing what an earlier session had)."""
         import zenoh
 
-        from fleet.control.protocol import data_key
+        from fleet.control.protocol import data_key, echo_keys
 
-        self.counts = {"out": 0, "in": 0}
-        self._keep = []  # Zenoh publishers and subscribers live as long as the bridge
-        for route in exports:
-            publisher = session.declare_publisher(
-                data_key(fleet, route.name),
+        publishers = {}
+        keep: list[Any] = []
+        for route in self.exports:
+            publishers[route.name] = session.declare_publisher(
+                data_key(self.fleet, route.name),
                 congestion_control=zenoh.CongestionControl.BLOCK if route.reliable else zenoh.CongestionControl.DROP,
             )
-            self._keep.append(publisher)
-            node.create_subscription(
-                message_class(route.type), route.name, self._sender(publisher), ros_qos(route), raw=True
-            )
-        for route in imports:
-            publisher = node.create_publisher(message_class(route.type), route.name, ros_qos(route))
-            self._keep.append(session.declare_subscriber(data_key(fleet, route.name), self._receiver(publisher)))
+        for route in self.imports:
+            keep.append(session.declare_subscriber(data_key(self.fleet, route.name), self._receiver(route.name)))
+        ping, pong = echo_keys(self.fleet, self.agent)
+        keep.append(session.declare_subscriber(pong, self._echoed))
+        self._ping = session.declare_publisher(ping)
+        self._zenoh, self._keep = publishers, [*keep, *publishers.values(), self._ping]
+        self.last_echo = time.monotonic()  # the new session gets its full grace period
 
-    def _sender(self, publisher):
+    def probe(self) -> None:
+        with contextlib.suppress(Exception):  # a closed session: the next attach replaces it
+            self._ping.put(b"?")
+
+    def _echoed(self, sample) -> None:
+        self.last_echo = time.monotonic()
+
+    def _sender(self, topic: str):
         def send(data: bytes) -> None:  # rclpy executor thread
-            publisher.put(data)
+            publisher = self._zenoh.get(topic)
+            if publisher is None:
+                return
+            try:
+                publisher.put(data)
+            except Exception:  # the session is being replaced: this message is lost, as on a cut link
+                return
             self.counts["out"] += 1
 
         return send
 
-    def _receiver(self, publisher):
+    def _receiver(self, topic: str):
+        publisher = self._ros_publishers[topic]
+
         def receive(sample) -> None:  # Zenoh thread: publish and return
             publisher.publish(sample.payload.to_bytes())
             self.counts["in"] += 1
 
         return receive
+
+
+def _replace_session(session, bridge: Bridge, connect: list[str], zenoh_config: Path | None, stop: threading.Event):
+    """A new session for a connected one that the router no longer echoes (seen after a link to
+    the router dropped and came back: Zenoh reconnected, but nothing reached this bridge)."""
+    from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
+
+    log.warning("the router has not echoed this bridge for %.0f s: opening a new Zenoh session", ECHO_TIMEOUT)
+    with contextlib.suppress(Exception):  # a broken session may not close cleanly: drop it anyway
+        session.close()
+    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop)
+    if session is not None:
+        bridge.attach(session)
+    return session
 
 
 def _spin(executor) -> None:
@@ -96,7 +149,7 @@ def main(argv: list[str]) -> int:
     try:
         config = json.loads(Path(argv[0]).read_text())
         routes = BridgeRoutes(exports=config["exports"], imports=config["imports"])
-        fleet, connect = config["fleet"], list(config["connect"])
+        fleet, agent, connect = config["fleet"], config["agent"], list(config["connect"])
         zenoh_config = Path(config["zenoh_config"]) if config.get("zenoh_config") else None
     except (IndexError, OSError, ValueError, KeyError, TypeError) as error:
         print(f"fleet bridge: error: bad config: {' '.join(str(error).split())}", file=sys.stderr)
@@ -116,7 +169,8 @@ def main(argv: list[str]) -> int:
     try:
         if session is None:
             return 0
-        bridge = Bridge(fleet, routes.exports, routes.imports, session, node)
+        bridge = Bridge(fleet, agent, routes.exports, routes.imports, node)
+        bridge.attach(session)
         log.info(
             "bridge of fleet %s: %d topics out, %d in, through %s",
             fleet,
@@ -129,18 +183,25 @@ def main(argv: list[str]) -> int:
         spinner = threading.Thread(target=_spin, args=(executor,), name="fleet-bridge-ros", daemon=True)
         spinner.start()
         # A line every 10 s while messages flow or stop flowing: what `fleet logs` cannot show.
-        last = dict(bridge.counts)
-        while not stop.wait(STATS_PERIOD):
-            now = dict(bridge.counts)
-            if now != last or any(last.values()):
-                log.info(
-                    "last %.0f s: %d messages out, %d in (routers: %d)",
-                    STATS_PERIOD,
-                    now["out"] - last["out"],
-                    now["in"] - last["in"],
-                    len(list(session.info.routers_zid())),
-                )
-            last = now
+        last, next_stats = dict(bridge.counts), time.monotonic() + STATS_PERIOD
+        while not stop.wait(PROBE_PERIOD):
+            bridge.probe()
+            routers = len(list(session.info.routers_zid()))
+            if routers and time.monotonic() - bridge.last_echo > ECHO_TIMEOUT:
+                session = _replace_session(session, bridge, connect, zenoh_config, stop)
+                if session is None:
+                    break
+            if time.monotonic() >= next_stats:
+                now, next_stats = dict(bridge.counts), next_stats + STATS_PERIOD
+                if now != last or any(last.values()):
+                    log.info(
+                        "last %.0f s: %d messages out, %d in (routers: %d)",
+                        STATS_PERIOD,
+                        now["out"] - last["out"],
+                        now["in"] - last["in"],
+                        routers,
+                    )
+                last = now
         log.info(
             "bridge of fleet %s stopping: %d messages out, %d in", fleet, bridge.counts["out"], bridge.counts["in"]
         )
