@@ -10,8 +10,9 @@ the CDR bytes) and puts them on fleet/<fleet>/data/<topic>; an import subscribes
 publishes the bytes on the local topic (rclpy's publish takes serialized bytes).  So any message
 type crosses with no code of its own; the type name only creates the local endpoint.  Zenoh
 delivers a put only where a subscriber is declared, so a topic travels only to agents that
-import it.  Reliable topics block rather than drop when the link is congested; best-effort ones
-drop.  The process exits 0 on SIGTERM/SIGINT, 2 on a bad config.
+import it.  Every bridge probes its path through the router once a second (the router echoes
+it) and opens a new session when a connected router has echoed nothing for ECHO_TIMEOUT.  The
+process exits 0 on SIGTERM/SIGINT, 2 on a bad config.
 """
 
 from __future__ import annotations
@@ -78,9 +79,11 @@ class Bridge:
         publishers = {}
         keep: list[Any] = []
         for route in self.exports:
+            # DROP, as rmw_zenoh does for every KEEP_LAST topic (all of ours): with BLOCK, one agent
+            # whose link was cut filled the router's queue towards it and stalled every bridge's
+            # traffic, the other agents' too, until the router gave up on that link.
             publishers[route.name] = session.declare_publisher(
-                data_key(self.fleet, route.name),
-                congestion_control=zenoh.CongestionControl.BLOCK if route.reliable else zenoh.CongestionControl.DROP,
+                data_key(self.fleet, route.name), congestion_control=zenoh.CongestionControl.DROP
             )
         for route in self.imports:
             keep.append(session.declare_subscriber(data_key(self.fleet, route.name), self._receiver(route.name)))
