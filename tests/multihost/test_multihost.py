@@ -189,16 +189,7 @@ class Fleet:
                 process.wait()
 
 
-# The `zenoh` transport across computers is not reliable yet (issue 10 stays open): in some runs
-# on this 2-core machine an agent's Zenoh session stops answering after rack_b's link comes back
-# (its desired-state queries time out; `fleet status` shows it offline).  The test still runs and
-# reports; it does not fail the suite until that is fixed.
-ZENOH_KNOWN_PROBLEM = pytest.mark.xfail(
-    reason="zenoh transport: an agent's session may stop answering after a link change (issue 10)", strict=False
-)
-
-
-@pytest.fixture(params=["dds", pytest.param("zenoh", marks=ZENOH_KNOWN_PROBLEM)])
+@pytest.fixture(params=["dds", "zenoh"])
 def fleet(request, lan, tmp_path, ros_domain):
     spec = dict(SPEC, ros={"domain_id": ros_domain, "use_sim_time": True, "transport": request.param})
     (tmp_path / "lan.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
