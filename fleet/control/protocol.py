@@ -605,12 +605,13 @@ class DesiredQuery(Message):
 
 
 class DesiredDone(Message):
-    """The router's reply to every DesiredQuery besides the states, on `fleet/*/desired/<agent>`: the router
-    heard the agent.  A query that gets no reply at all while the router is connected means the
-    agent's session has stalled (fleet.control.agent replaces it)."""
+    """The router's reply, besides the states, to every DesiredQuery for any fleet
+    (`fleet/*/desired/<agent>`, an agent's periodic ask; a query for one fleet gets only its
+    state): the router heard the agent.  A query that gets no reply at all while the router is
+    connected means the agent's session has stalled (fleet.control.agent replaces it)."""
 
     kind: Literal["desired_done"] = "desired_done"
-    sent: int = Field(0, ge=0)  # desired states sent before this reply
+    sent: int = Field(0, ge=0)  # desired states sent with it (Zenoh may deliver them after it)
 
 
 class ErrorReply(Message):

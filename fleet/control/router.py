@@ -136,7 +136,8 @@ class Registry:
             ]
         for key, payload in replies:
             query.reply(key, payload)
-        query.reply(str(query.key_expr), p.encode(p.DesiredDone(sent=len(replies))))
+        if p.fleet_of_key(query.key_expr) is None:  # an agent's periodic ask (any fleet): say it was heard
+            query.reply(str(query.key_expr), p.encode(p.DesiredDone(sent=len(replies))))
 
     def on_query(self, query) -> None:
         wanted = p.fleet_of_key(query.key_expr)

@@ -149,3 +149,8 @@ def test_the_router_ends_every_desired_state_answer(fresh_cluster):
         nothing_newer = answer({"tiny": 7})
         assert [key for key, _ in nothing_newer] == [p.desired_key("*", "hostA")]
         assert p.decode(nothing_newer[0][1].encode(), p.DesiredDone).sent == 0
+        # A query for one fleet (as the dashboard asks for a robot's deployed parameters) gets
+        # only the state, which then is the one and only reply.
+        query = p.encode(p.DesiredQuery(held={"tiny": 0}))
+        with_fleet = client.session.get(p.desired_key("tiny", "hostA"), payload=query, timeout=5)
+        assert [str(r.ok.key_expr) for r in with_fleet if r.ok is not None] == [p.desired_key("tiny", "hostA")]
