@@ -49,7 +49,7 @@ class Bridge:
     def __init__(self, fleet: str, exports, imports, session, node) -> None:
         import zenoh
 
-        from fleet.control.protocol import data_key
+        from fleet.wire.protocol import data_key
 
         self.counts = {"out": 0, "in": 0}
         self._keep = []  # Zenoh publishers and subscribers live as long as the bridge
@@ -90,8 +90,8 @@ def _spin(executor) -> None:
 
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s fleet.bridge %(levelname)s %(message)s")
-    from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
-    from fleet.dataplane.topics import BridgeRoutes
+    from fleet.wire.protocol import BridgeRoutes
+    from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
 
     try:
         config = json.loads(Path(argv[0]).read_text())

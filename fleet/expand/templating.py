@@ -21,10 +21,9 @@ from jinja2 import nodes
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 
 from fleet.errors import Location, TemplateError
-from fleet.spec.names import template_name_problem
+from fleet.rules import PARAMS_SUFFIX, TEMPLATE_SUFFIX, template_name_problem
 
-TEMPLATE_SUFFIX = ".launch.yaml.j2"
-DEFAULTS_SUFFIX = ".params.yaml"
+DEFAULTS_SUFFIX = PARAMS_SUFFIX  # a template's parameter defaults, beside it
 
 
 def builtin_template_dirs() -> list[Path]:

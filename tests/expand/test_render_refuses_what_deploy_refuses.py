@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.control import limits, protocol
 from fleet.errors import SpecError
 from fleet.expand import expand_fleet
 from fleet.spec import parse_spec
+from fleet.wire import limits, protocol
 from fleet.world import geometry
 from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D, RobotSpec, WorldSpec
 
