@@ -17,6 +17,8 @@ _ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 # Zenoh key chunks must not contain / * $ ? # and we keep them boring on purpose.
 _KEY_CHUNK = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 MAX_NAME_LENGTH = 63
+# One token of a ROS name, length bound included: for patterns elsewhere (pydantic fields).
+ROS_TOKEN_PATTERN = rf"[A-Za-z_][A-Za-z0-9_]{{0,{MAX_NAME_LENGTH - 1}}}"
 # rmw (validate_full_topic_name.h): a fully qualified topic or service name has at most 255 - 8
 # characters, 8 being reserved for the DDS prefixes; a namespace 2 fewer (validate_namespace.h),
 # room for the shortest name in it.  Both checked with rclpy's validators.

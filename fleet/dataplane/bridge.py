@@ -20,7 +20,6 @@ import contextlib
 import importlib
 import json
 import logging
-import signal
 import sys
 import threading
 from pathlib import Path
@@ -105,9 +104,9 @@ def main(argv: list[str]) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
+    from fleet.runtime.processes import stop_on_signals
+
+    stop = stop_on_signals()
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(f"fleet_bridge_{fleet.replace('-', '_').replace('.', '_')}")
     executor = SingleThreadedExecutor()

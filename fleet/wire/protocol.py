@@ -33,8 +33,8 @@ from typing import Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from fleet.rules import ROS_TOKEN_PATTERN, ros_name_problem
 from fleet.rules import key_name_problem as key_name_problem
-from fleet.rules import ros_name_problem
 from fleet.wire.limits import MAX_BUNDLES as MAX_BUNDLES
 from fleet.wire.limits import MAX_FILE_BYTES as MAX_FILE_BYTES
 from fleet.wire.limits import MAX_FILES_PER_BUNDLE as MAX_FILES_PER_BUNDLE
@@ -243,7 +243,7 @@ class TopicRoute(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    name: str = Field(pattern=r"^(/[A-Za-z_][A-Za-z0-9_]{0,62}){1,8}$")
+    name: str = Field(pattern=rf"^(/{ROS_TOKEN_PATTERN}){{1,8}}$")
     type: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z_][A-Za-z0-9_]*$")
     reliable: bool = True
     transient_local: bool = False
