@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.connection import ConnectOption, ZenohConfigOption
+from fleet.cli.options import ConnectOption, ZenohConfigOption
 
 
 def register(app: typer.Typer) -> None:

@@ -12,12 +12,10 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from fleet.cli.connection import ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client
 
 if TYPE_CHECKING:
     from rich.progress import TaskID
-
-SET_HELP = "Override a parameter: ROBOT.NODE.PARAM=VALUE (value parsed as YAML; repeatable)."
 
 
 def register(app: typer.Typer) -> None:

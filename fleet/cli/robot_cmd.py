@@ -9,7 +9,7 @@ from typing import Literal
 
 import typer
 
-from fleet.cli.connection import ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client
 
 
 def register(app: typer.Typer) -> None:

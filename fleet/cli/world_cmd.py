@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.connection import ConnectOption, ZenohConfigOption
+from fleet.cli.options import ConnectOption, ZenohConfigOption
 from fleet.errors import FleetError, Location
 
 
@@ -97,7 +97,7 @@ def _remote_world(fleet: str | None, connect: str | None, zenoh_config: Path | N
     """One status query finds the agent running the world; that agent sends the whole state."""
     import time
 
-    from fleet.cli.connection import client
+    from fleet.cli.options import client
     from fleet.plan import build_view, locate_world
     from fleet.rules import key_name_problem
 

@@ -380,12 +380,7 @@ class Agent:
             {name for name, unit in units.items() if unit.error or unit.session is None or unit.env != env},
         )
         # Stop first (in parallel: each stop may wait seconds for a node to exit), then start.
-        leaving = [units[name] for name in changes.stop + changes.restart]
-        stoppers = [threading.Thread(target=unit.stop) for unit in leaving]
-        for thread in stoppers:
-            thread.start()
-        for thread in stoppers:
-            thread.join()
+        stop_all(units[name].stop for name in changes.stop + changes.restart)
         with self._lock:
             for name in changes.stop:
                 self._units.pop((fleet, name), None)

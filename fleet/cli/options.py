@@ -1,4 +1,4 @@
-"""Options shared by the commands that talk to a router, and the client they open."""
+"""Options shared by several command groups, and the client the commands that talk to a router open."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ if TYPE_CHECKING:
     from fleet.client import ControlClient
 
 CONNECT_HELP = "Router endpoint to connect to (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."
+SET_HELP = "Override a parameter: ROBOT.NODE.PARAM=VALUE (value parsed as YAML; repeatable)."
 ZENOH_CONFIG_HELP = "Zenoh JSON5 config file for TLS, user/password or access control (or $FLEET_ZENOH_CONFIG)."
 
 ConnectOption = typer.Option(None, "--connect", "-c", help=CONNECT_HELP)
