@@ -60,6 +60,7 @@ WORLD_STATUS_FILE = "world.status.json"
 #     desired/<fleet>.json         the accepted desired state plus live parameter overrides
 #     units/<fleet>/<robot>/       bundle files as written for the runner, logs/ beside them
 #     hosts/<fleet>-<n>/           logs of the host processes of `isolation: agent`
+#     services/<fleet>.*           the fleet's discovery server and Zenoh bridge: config, logs
 
 STATE_VARIABLE = "FLEET_STATE_DIR"
 
@@ -108,6 +109,10 @@ def unit_dir(agent: Path, fleet: str, robot: str) -> Path:
 
 def unit_log_dir(unit: Path) -> Path:
     return unit / "logs"
+
+
+def services_dir(agent: Path) -> Path:
+    return agent / "services"
 
 
 def hosts_dir(agent: Path, fleet: str, number: int) -> Path:

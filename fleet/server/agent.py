@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 from fleet import __version__
 from fleet.files import write_atomic
-from fleet.rules import hosts_dir
+from fleet.rules import hosts_dir, services_dir
 from fleet.runtime.processes import stop_all
 from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
@@ -452,7 +452,7 @@ class Agent:
         from fleet.dataplane.discovery import discovery_server
         from fleet.runtime.processes import ServiceProcess
 
-        directory = self.store.root / "services"
+        directory = services_dir(self.store.root)
         if kind == "discovery":
             return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
         config = directory / f"{fleet}.bridge.json"
