@@ -36,11 +36,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.machine import machine_description
 from fleet.dataplane.discovery import server_command, server_environment
-from fleet.dataplane.topics import TopicRoute
 from fleet.runtime.environment import discovery_server_port, ros_environment
 from fleet.runtime.processes import ServiceProcess
 from fleet.testing.isolation import reserve_domain_id
 from fleet.testing.netns import Lan, netns_problem
+from fleet.wire.protocol import TopicRoute
 
 PEER = [sys.executable, str(Path(__file__).resolve().parent / "dataplane_peer.py")]
 

@@ -76,7 +76,7 @@ def time_plain_write(files: dict[Path, str]) -> float:
     return time.perf_counter() - start
 
 
-ROBOTS_PER_AGENT = 1000  # an agent takes at most 1024 units (fleet.control.limits.MAX_BUNDLES)
+ROBOTS_PER_AGENT = 1000  # an agent takes at most 1024 units (fleet.wire.limits.MAX_BUNDLES)
 SIMULATED_EVERY = 10  # a world.yaml of 1,000 simulated robots is 0.3 MB; an agent takes files up to 1 MiB
 
 

@@ -11,7 +11,17 @@ import sys
 
 import typer
 
-from fleet.cli import certs_cmd, control_cmd, dashboard_cmd, render_cmd, run_cmd, world_cmd
+from fleet.cli import (
+    certs_cmd,
+    daemons_cmd,
+    dashboard_cmd,
+    deploy_cmd,
+    render_cmd,
+    robot_cmd,
+    run_cmd,
+    status_cmd,
+    world_cmd,
+)
 from fleet.errors import COMMAND_LINE, EXIT_FAILURE, EXIT_USAGE, FleetError, Location
 
 app = typer.Typer(
@@ -32,7 +42,17 @@ def _fleet() -> None:
     """
 
 
-for _module in (render_cmd, run_cmd, control_cmd, world_cmd, certs_cmd, dashboard_cmd):
+for _module in (
+    render_cmd,
+    run_cmd,
+    daemons_cmd,
+    deploy_cmd,
+    status_cmd,
+    robot_cmd,
+    world_cmd,
+    certs_cmd,
+    dashboard_cmd,
+):
     _module.register(app)
 
 

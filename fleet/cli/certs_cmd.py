@@ -28,9 +28,9 @@ def certs(
     access rules letting each agent reach only its own keys.  Existing certificates are kept."""
     from fleet.cli.output import console, print_json
     from fleet.cli.render_cmd import load_and_expand
-    from fleet.control import certificates as c
-    from fleet.control import protocol as p
-    from fleet.control import security
+    from fleet.wire import certificates as c
+    from fleet.wire import protocol as p
+    from fleet.wire import security
 
     expansion = load_and_expand(spec, [])
     agents = sorted(set(expansion.spec.agents) | {bundle.agent for bundle in expansion.bundles})

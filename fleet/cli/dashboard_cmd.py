@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.control_cmd import ConnectOption, ZenohConfigOption
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client
 
 
 def register(app: typer.Typer) -> None:
@@ -28,17 +28,15 @@ def dashboard(
     import logging
     import sys
 
-    from fleet.control.client import ControlClient
-    from fleet.control.session import config_file, default_endpoint
     from fleet.dashboard.live import LiveFleet
     from fleet.dashboard.server import listen, serve, url_of
 
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     sock = listen(host, port)  # a port in use is bad input: said before anything else happens
     try:
-        with ControlClient([connect or default_endpoint()], config_file(zenoh_config)) as client:
+        with client(connect, zenoh_config) as control:
             typer.echo(f"fleet dashboard on {url_of(sock)} (Ctrl-C stops it)")
             sys.stdout.flush()
-            serve(LiveFleet(client, fleet), sock)
+            serve(LiveFleet(control, fleet), sock)
     finally:
         sock.close()

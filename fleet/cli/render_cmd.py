@@ -9,14 +9,13 @@ from pathlib import Path
 
 import typer
 
+from fleet.cli.options import SET_HELP
+
 
 class Format(StrEnum):
     yaml = "yaml"
     py = "py"
     both = "both"
-
-
-SET_HELP = "Override a parameter: ROBOT.NODE.PARAM=VALUE (value parsed as YAML; repeatable)."
 
 
 def register(app: typer.Typer) -> None:

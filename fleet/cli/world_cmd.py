@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.control_cmd import ConnectOption, ZenohConfigOption
+from fleet.cli.options import ConnectOption, ZenohConfigOption
 from fleet.errors import FleetError, Location
 
 
@@ -79,7 +79,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _local_world(status_file: Path):
-    from fleet.control.protocol import world_document
+    from fleet.wire.protocol import world_document
     from fleet.world.status import read_status
 
     data = read_status(status_file)
@@ -97,12 +97,12 @@ def _remote_world(fleet: str | None, connect: str | None, zenoh_config: Path | N
     """One status query finds the agent running the world; that agent sends the whole state."""
     import time
 
-    from fleet.cli.control_cmd import _client
-    from fleet.control.protocol import key_name_problem
-    from fleet.control.view import build_view, locate_world
+    from fleet.cli.options import client
+    from fleet.plan import build_view, locate_world
+    from fleet.rules import key_name_problem
 
     if fleet is not None and key_name_problem(fleet):
         raise FleetError(f"--fleet: {key_name_problem(fleet)}")
-    with _client(connect, zenoh_config) as client:
-        fleet_name, agent = locate_world(build_view(*client.status(fleet), time.time()), fleet)
-        return client.world(fleet_name, agent).world
+    with client(connect, zenoh_config) as control:
+        fleet_name, agent = locate_world(build_view(*control.status(fleet), time.time()), fleet)
+        return control.world(fleet_name, agent).world

@@ -9,7 +9,7 @@ putting their status while someone subscribes: an agent's session that declared 
 the keys of its own queryables stalled under a router's link changes (the multi-computer test
 failed in 2 of 3 runs with them, passed 3 of 3 without).
 
-The state document is the FleetView of fleet.control.view.build_view, the one rule `fleet status`
+The state document is the FleetView of fleet.plan.view.build_view, the one rule `fleet status`
 uses, as `fleet status --json` prints it, plus `maps` (fleet -> its world's state) and `history`
 (fleet -> its last deploys, oldest first, each generation as a string).
 """
@@ -22,10 +22,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from fleet.control import protocol as p
-from fleet.control.client import ControlClient
-from fleet.control.view import FleetView, RobotRow, build_view
+from fleet.client import ControlClient
 from fleet.errors import ControlError
+from fleet.plan import FleetView, RobotRow, build_view
+from fleet.wire import protocol as p
 
 log = logging.getLogger("fleet.dashboard")
 
@@ -105,19 +105,13 @@ class LiveFleet:
 
     def logs(self, fleet: str, robot: str, tail: int) -> list[dict[str, str]]:
         agent = self._agent_of(fleet, robot)
-        request = p.LogsRequest(fleet=fleet, robot=robot, tail=tail)
-        reply = self.client.request(p.logs_key(fleet, agent), request, p.LogsReply, f"agent {agent}", REQUEST_TIMEOUT)
+        reply = self.client.logs(agent, p.LogsRequest(fleet=fleet, robot=robot, tail=tail), REQUEST_TIMEOUT)
         return [line.model_dump() for line in reply.lines]
 
     def parameter(self, fleet: str, robot: str, node: str, name: str) -> dict[str, Any]:
         """One parameter's live value, read from the node by its agent; ValueError for a bad name."""
-        from fleet.control.agent import PARAM_TIMEOUT
-
         agent = self._agent_of(fleet, robot)
-        request = p.ParamRequest(fleet=fleet, robot=robot, node=node, name=name, op="get")
-        reply = self.client.request(
-            p.param_key(fleet, agent), request, p.ParamReply, f"agent {agent}", PARAM_TIMEOUT + 5
-        )  # the agent's own wait, plus the round trip
+        reply = self.client.param(agent, p.ParamRequest(fleet=fleet, robot=robot, node=node, name=name, op="get"))
         return {"ok": reply.ok, "value": reply.value, "reason": reply.reason}
 
     def deployed_parameters(self, fleet: str, robot: str) -> list[dict[str, Any]]:

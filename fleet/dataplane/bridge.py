@@ -21,7 +21,6 @@ import contextlib
 import importlib
 import json
 import logging
-import signal
 import sys
 import threading
 import time
@@ -74,7 +73,7 @@ class Bridge:
         """Declare the Zenoh side on `session` (replacing what an earlier session had)."""
         import zenoh
 
-        from fleet.control.protocol import data_key, echo_keys
+        from fleet.wire.protocol import data_key, echo_keys
 
         publishers = {}
         keep: list[Any] = []
@@ -126,7 +125,7 @@ class Bridge:
 def _replace_session(session, bridge: Bridge, connect: list[str], zenoh_config: Path | None, stop: threading.Event):
     """A new session for a connected one that the router no longer echoes (seen after a link to
     the router dropped and came back: Zenoh reconnected, but nothing reached this bridge)."""
-    from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
+    from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
 
     log.warning("the router has not echoed this bridge for %.0f s: opening a new Zenoh session", ECHO_TIMEOUT)
     with contextlib.suppress(Exception):  # a broken session may not close cleanly: drop it anyway
@@ -146,8 +145,8 @@ def _spin(executor) -> None:
 
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s fleet.bridge %(levelname)s %(message)s")
-    from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
-    from fleet.dataplane.topics import BridgeRoutes
+    from fleet.wire.protocol import BridgeRoutes
+    from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
 
     try:
         config = json.loads(Path(argv[0]).read_text())
@@ -161,9 +160,9 @@ def main(argv: list[str]) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
+    from fleet.runtime.processes import stop_on_signals
+
+    stop = stop_on_signals()
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(f"fleet_bridge_{fleet.replace('-', '_').replace('.', '_')}")
     executor = SingleThreadedExecutor()

@@ -15,7 +15,7 @@ from functools import partial
 from typing import Any
 
 from fleet.errors import Location, SpecError
-from fleet.spec.names import ros_name_problem
+from fleet.rules import ros_name_problem
 from fleet.spec.params import coerce_like, flatten, namespace_clash, normalize, value_problem
 from fleet.spec.yaml_source import DocPath, parse_scalar
 

@@ -22,6 +22,7 @@ from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.python_launch import python_launch_source
 from fleet.expand.templating import TemplateSet
+from fleet.rules import PARAMS_SUFFIX
 from fleet.spec.yaml_source import safe_load
 
 # Valid ROS name tokens, so the placeholder rendering outlines like a real one.
@@ -40,7 +41,7 @@ class RenderedLaunch:
 
 def params_file_reference(robot: str) -> str:
     """How a robot's launch file names its parameter file: next to itself."""
-    return f"$(dirname)/{robot}.params.yaml"
+    return f"$(dirname)/{robot}{PARAMS_SUFFIX}"
 
 
 def python_comment(robot: str, template: str, fleet: str) -> str:

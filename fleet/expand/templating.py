@@ -32,11 +32,10 @@ from jinja2 import nodes
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 
 from fleet.errors import Location, TemplateError
-from fleet.spec.names import template_name_problem
+from fleet.rules import PARAMS_SUFFIX, TEMPLATE_SUFFIX, template_name_problem
 from fleet.spec.yaml_source import MAX_TEXT_CHARS
 
-TEMPLATE_SUFFIX = ".launch.yaml.j2"
-DEFAULTS_SUFFIX = ".params.yaml"
+DEFAULTS_SUFFIX = PARAMS_SUFFIX  # a template's parameter defaults, beside it
 MAX_OUTPUT_CHARS = MAX_TEXT_CHARS  # a rendered launch file is read back as fleet's own input
 MAX_RENDER_SECONDS = 5.0  # a real template renders in about a millisecond
 MAX_POWER_BITS = 4096  # far beyond an int64 parameter, far below a number that takes seconds to make

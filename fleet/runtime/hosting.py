@@ -33,7 +33,7 @@ from typing import IO, Any
 from fleet.runtime import ament
 from fleet.runtime.launch_file import NodeLaunch
 from fleet.runtime.node_log import ProcessOutput
-from fleet.runtime.processes import group_exists, signal_group, spawn
+from fleet.runtime.processes import group_exists, signal_group, spawn, stop_all
 from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, backoff_delay
 
 HOST_MODULE = "fleet.nodes.host"
@@ -446,9 +446,5 @@ class HostPool:
         with self._lock:
             hosts, self.hosts = self.hosts, []
             self._where.clear()
-        threads = [threading.Thread(target=host.stop) for host in hosts]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
+        stop_all(host.stop for host in hosts)
         shutil.rmtree(self.socket_dir, ignore_errors=True)

@@ -16,7 +16,8 @@ import logging
 import os
 import signal
 import subprocess
-from collections.abc import Mapping, Sequence
+import threading
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -158,3 +159,23 @@ def terminate(processes: list[psutil.Process], timeout: float = 5.0) -> None:
         with contextlib.suppress(psutil.NoSuchProcess):
             process.kill()
     psutil.wait_procs(alive, timeout=timeout)
+
+
+def stop_all(stoppers: Iterable[Callable[[], None]]) -> None:
+    """Call every `stop` at once, each on its own thread, and return when all have returned: the
+    stops of many units or hosts each wait for their processes, so together they take the
+    longest one's time, not the sum."""
+    threads = [threading.Thread(target=stop) for stop in stoppers]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+
+
+def stop_on_signals(stop: threading.Event | None = None) -> threading.Event:
+    """`stop` (or a new event) set by SIGINT or SIGTERM: a daemon finishes cleanly (stops its
+    robots, closes its sessions) instead of dying mid-way.  Call from the main thread."""
+    stop = stop or threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    return stop

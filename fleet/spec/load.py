@@ -11,8 +11,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from fleet.errors import Location, SpecError
-from fleet.spec.model import FleetSpec
-from fleet.spec.names import (
+from fleet.rules import (
     RESERVED_UNIT_NAMES,
     WORLD_TEMPLATE,
     key_name_problem,
@@ -20,6 +19,7 @@ from fleet.spec.names import (
     ros_name_problem,
     template_name_problem,
 )
+from fleet.spec.model import FleetSpec
 from fleet.spec.params import ParameterNameClash, flatten, namespace_clash, value_problem
 from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input
 

@@ -17,11 +17,12 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from fleet import rules
 from fleet.testing.isolation import free_tcp_port
 from fleet.testing.poll import WaitTimeout, poll
 
 if TYPE_CHECKING:
-    from fleet.control.client import ControlClient
+    from fleet.client import ControlClient
 
 ROUTER = "router"
 AGENT_PREFIX = "agent-"
@@ -150,7 +151,7 @@ class ControlPlane:
     # -- files ----------------------------------------------------------------------------------
 
     def agent_dir(self, name: str) -> Path:
-        return self.root / "agents" / name
+        return rules.agent_dir(self.root, name)
 
     def log_path(self, key: str) -> Path:
         return self.root / f"{key}.log"
@@ -164,7 +165,7 @@ class ControlPlane:
     # -- talking to it --------------------------------------------------------------------------
 
     def client(self) -> ControlClient:
-        from fleet.control.client import ControlClient
+        from fleet.client import ControlClient
 
         return ControlClient([self.endpoint])
 
@@ -200,7 +201,7 @@ def child_environment(marker_variable: str, marker: str, state_dir: Path) -> dic
     for key in ("FLEET_CONNECT", "FLEET_ZENOH_CONFIG", "ROS_LOCALHOST_ONLY"):
         env.pop(key, None)
     env[marker_variable] = marker
-    env["FLEET_STATE_DIR"] = str(state_dir)  # never the user's ~/.local/state/fleet
+    env[rules.STATE_VARIABLE] = str(state_dir)  # never the user's ~/.local/state/fleet
     env["ROS_HOME"] = str(state_dir / "ros")  # rcl log files stay with the test, not in ~/.ros
     env.pop("ROS_LOG_DIR", None)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fleet.rules import WORLD_STATUS_FILE, WORLD_UNIT, unit_dir, unit_log_dir
 from fleet.testing.control_plane import ROUTER, ControlPlane, agent_key, child_environment
 from fleet.testing.isolation import reserve_domain_id, with_domain_id
 from fleet.testing.poll import WaitTimeout, poll
@@ -37,8 +38,7 @@ from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
 if TYPE_CHECKING:
     from fleet.testing.ros import RosProbe
 
-WORLD = "world"
-WORLD_STATUS_FILE = "world.status.json"  # written by the world unit (templates/world.launch.yaml.j2)
+WORLD = WORLD_UNIT
 WALL_PER_SIM = 3.0  # default wall-clock allowance per second of sim time a wait may take
 WALL_SLACK = 20.0
 
@@ -163,9 +163,9 @@ class FleetHandle:
     ):
         """Deploy (again): a changed spec and/or other `--set` overrides (default: the current
         ones).  Agents the spec newly uses are started first (not those a test stopped: a deploy
-        meets them down, as it would in the field).  Returns fleet.control.deploy's
+        meets them down, as it would in the field).  Returns fleet.client.deployment's
         Outcome; with check=True a deploy that did not bring every robot up fails the test."""
-        from fleet.control.deploy import deploy
+        from fleet.client import deploy
 
         if spec is not None or sets is not None:
             self.spec_source = spec if spec is not None else self.spec_source
@@ -203,15 +203,15 @@ class FleetHandle:
     # -- status ---------------------------------------------------------------------------------
 
     def status(self):
-        """This fleet's part of `fleet status` (a fleet.control.view.FleetView)."""
-        from fleet.control.view import build_view
+        """This fleet's part of `fleet status` (a fleet.plan.view.FleetView)."""
+        from fleet.plan import build_view
 
         with self.control.client() as client:
             view = build_view(*client.status(self.name), time.time())
         return view.only(self.name)
 
     def robot_status(self, robot: str):
-        """The status row (fleet.control.view.RobotRow) of a robot, or of `world`."""
+        """The status row (fleet.plan.view.RobotRow) of a robot, or of `world`."""
         rows = self.status().find_robot(robot)
         if not rows:
             raise KeyError(f"fleet {self.name} has no robot {robot!r} in status")
@@ -281,7 +281,7 @@ class FleetHandle:
         if bundle is None:
             return None
         # The agent's documented layout: <state-dir>/units/<fleet>/<unit>/ (docs/control-plane.md)
-        return self.control.agent_dir(bundle.agent) / "units" / self.name / WORLD / WORLD_STATUS_FILE
+        return unit_dir(self.control.agent_dir(bundle.agent), self.name, WORLD) / WORLD_STATUS_FILE
 
     def world(self) -> dict[str, Any] | None:
         """The world's full status document (sim_time, robots with pose/velocity/battery/trail,
@@ -500,7 +500,7 @@ class FleetHandle:
             if process.pid in expected:
                 continue
             try:
-                if "fleet.control.param_helper" in " ".join(process.cmdline()):
+                if "fleet.runtime.param_helper" in " ".join(process.cmdline()):
                     continue  # an agent's short-lived parameter call
             except psutil.Error:
                 continue
@@ -525,7 +525,7 @@ class FleetHandle:
         bundle = self.expansion.bundle(robot)
         if bundle is None:
             raise KeyError(f"fleet {self.name} has no robot {robot!r}")
-        directory = self.control.agent_dir(bundle.agent) / "units" / self.name / robot / "logs"
+        directory = unit_log_dir(unit_dir(self.control.agent_dir(bundle.agent), self.name, robot))
         found = {}
         for path in sorted(directory.glob("*.log")):
             found[path.stem] = path.read_text(errors="replace").splitlines()[-lines:]

@@ -154,7 +154,7 @@ class RosProbe:
     # --- parameters --------------------------------------------------------------------------
 
     def _call(self, service_type, name: str, request, timeout: float):
-        from fleet.control.param_helper import call_service
+        from fleet.runtime.param_helper import call_service
 
         client = self.node.create_client(service_type, name)
         try:

@@ -1,7 +1,7 @@
 """The world's status file: building the JSON document, writing it atomically, reading it back.
 
 The document is plain JSON data; the agent running the world serves it as is over the control
-plane (fleet.control.protocol.WorldDocument validates it) and cuts it down for status replies:
+plane (fleet.wire.protocol.WorldDocument validates it) and cuts it down for status replies:
 
     {"fleet", "sim_time", "wall_time", "real_time_factor", "physics_rate",
      "robots": {name: {"pose": {"x", "y", "yaw"}, "velocity": {"linear", "angular"},

@@ -14,24 +14,37 @@ def domain_id():
         yield reservation.domain_id
 
 
+def start_two_agents(cluster: Cluster) -> Cluster:
+    """Start the router and agents hostA and hostB, and wait until both agents are online."""
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.start_agent("hostB")
+    cluster.wait_agents_online("hostA", "hostB")
+    return cluster
+
+
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory, domain_id):
     """Router + agents hostA and hostB, shared by a module's tests (stopped at its end)."""
     cluster = Cluster(tmp_path_factory.mktemp("cluster"), domain_id)
     try:
-        cluster.start_router()
-        cluster.start_agent("hostA")
-        cluster.start_agent("hostB")
-        cluster.wait_agents_online("hostA", "hostB")
-        yield cluster
+        yield start_two_agents(cluster)
     finally:
         cluster.stop()
 
 
 @pytest.fixture
 def fresh_cluster(tmp_path, domain_id):
+    """A cluster of this test alone, nothing started yet."""
     cluster = Cluster(tmp_path, domain_id)
     try:
         yield cluster
     finally:
         cluster.stop()
+
+
+@pytest.fixture
+def fresh_two_agents(fresh_cluster):
+    """A router and agents hostA and hostB of this test alone (it may kill and restart them),
+    both agents online."""
+    return start_two_agents(fresh_cluster)

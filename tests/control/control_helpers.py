@@ -19,7 +19,7 @@ from fleet.testing.control_plane import ControlPlane
 from fleet.testing.poll import poll
 
 if TYPE_CHECKING:
-    from fleet.control.client import ControlClient
+    from fleet.client import ControlClient
 
 DATA = Path(__file__).parent / "data"
 
@@ -77,12 +77,12 @@ class Cluster(ControlPlane):
         return path
 
     def client(self, config: Path | None = None) -> ControlClient:
-        from fleet.control.client import ControlClient
+        from fleet.client import ControlClient
 
         return ControlClient([self.endpoint], config)
 
     def deploy(self, spec: Path, sets: Sequence[str] = (), timeout: float = 30.0, wait: bool = True):
-        from fleet.control.deploy import deploy
+        from fleet.client import deploy
         from fleet.expand import expand_fleet
         from fleet.spec import load_spec
 
@@ -91,7 +91,7 @@ class Cluster(ControlPlane):
             return deploy(client, expansion, wait=wait, timeout=timeout)
 
     def view(self, fleet: str | None = None, config: Path | None = None):
-        from fleet.control.view import build_view
+        from fleet.plan import build_view
 
         with self.client(config) as client:
             return build_view(*client.status(fleet), time.time())

@@ -1,6 +1,6 @@
 """An agent replaces a Zenoh session that has stalled: the router is connected, but its
 desired-state queries get no answer (Zenoh sometimes leaves a reconnected client so, see
-fleet.control.agent).  The session is faked here: what is tested is the agent's judgement of
+fleet.server.agent).  The session is faked here: what is tested is the agent's judgement of
 silence, which a real stall cannot be summoned to show on demand."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ from typing import Any
 
 import pytest
 
-from fleet.control import agent as agent_module
-from fleet.control import protocol as p
+from fleet.server import agent as agent_module
 from fleet.testing.poll import poll
+from fleet.wire import protocol as p
 
 
 @dataclass

@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from fleet.control import protocol as p
 from fleet.dataplane.bridge import ECHO_TIMEOUT
 from fleet.runtime.environment import ros_environment
 from fleet.testing.isolation import free_tcp_port
 from fleet.testing.poll import poll
+from fleet.wire import protocol as p
 
 pytestmark = pytest.mark.integration
 

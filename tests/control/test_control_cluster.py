@@ -15,11 +15,12 @@ import time
 import psutil
 import pytest
 
-from fleet.control import protocol as p
-from fleet.control.deploy import Outcome, new_generation, requests_for
+from fleet.client import Outcome
 from fleet.expand import expand_fleet
+from fleet.plan import new_generation, requests_for
 from fleet.spec import load_spec
 from fleet.testing.poll import poll
+from fleet.wire import protocol as p
 from tests.control.control_helpers import robot, wait_processes_gone
 
 pytestmark = pytest.mark.integration

@@ -7,7 +7,7 @@ import json
 import psutil
 import pytest
 
-from fleet.control.daemon import running_pid
+from fleet.client.local_daemon import running_pid
 from tests.control.control_helpers import wait_processes_gone
 
 pytestmark = pytest.mark.integration

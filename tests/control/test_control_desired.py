@@ -9,24 +9,16 @@ import time
 
 import pytest
 
-from fleet.control import protocol as p
-from fleet.control.deploy import down
+from fleet.client import down
 from fleet.testing.poll import poll
+from fleet.wire import protocol as p
 from tests.control.control_helpers import robot, wait_processes_gone
 
 pytestmark = pytest.mark.integration
 
 
-def start(cluster) -> None:
-    cluster.start_router()
-    cluster.start_agent("hostA")
-    cluster.start_agent("hostB")
-    cluster.wait_agents_online("hostA", "hostB")
-
-
-def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_cluster):
-    cluster = fresh_cluster
-    start(cluster)
+def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_two_agents):
+    cluster = fresh_two_agents
     first = cluster.deploy(cluster.spec())
     assert first.ok
     robot1_pids = robot(cluster.view("tiny"), "robot1").pids
@@ -63,9 +55,8 @@ def test_deploy_while_an_agent_is_down_completes_when_it_returns(fresh_cluster):
     )
 
 
-def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_cluster):
-    cluster = fresh_cluster
-    start(cluster)
+def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_two_agents):
+    cluster = fresh_two_agents
     assert cluster.deploy(cluster.spec()).ok
     hostb_pids = set().union(*(row.pids for row in cluster.view("tiny").robots if row.agent == "hostB"))
     cluster.kill("agent-hostB", signal.SIGKILL)
@@ -92,9 +83,8 @@ def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_clus
     assert not cluster.view("tiny").robots
 
 
-def test_bad_desired_states_are_ignored(fresh_cluster):
-    cluster = fresh_cluster
-    start(cluster)
+def test_bad_desired_states_are_ignored(fresh_two_agents):
+    cluster = fresh_two_agents
     outcome = cluster.deploy(cluster.spec())
     assert outcome.ok
     before = cluster.view("tiny")
@@ -127,7 +117,7 @@ def test_bad_desired_states_are_ignored(fresh_cluster):
 
 def test_the_router_ends_every_desired_state_answer(fresh_cluster):
     """It always adds a DesiredDone reply, also when nothing is newer: an agent that gets no reply at all
-    knows its session has stalled (fleet.control.agent), not that nothing changed."""
+    knows its session has stalled (fleet.server.agent), not that nothing changed."""
     cluster = fresh_cluster
     cluster.start_router()
     stored = p.ApplyRequest(fleet="tiny", agent="hostA", generation=7, domain_id=cluster.domain_id, bundles=[])

@@ -7,18 +7,14 @@ import signal
 
 import pytest
 
-from fleet.control.deploy import down
+from fleet.client import down
 from fleet.testing.poll import poll
 
 pytestmark = pytest.mark.integration
 
 
-def test_router_keeps_the_generation_history_across_restarts(fresh_cluster):
-    cluster = fresh_cluster
-    cluster.start_router()
-    cluster.start_agent("hostA")
-    cluster.start_agent("hostB")
-    cluster.wait_agents_online("hostA", "hostB")
+def test_router_keeps_the_generation_history_across_restarts(fresh_two_agents):
+    cluster = fresh_two_agents
     first = cluster.deploy(cluster.spec())
     second = cluster.deploy(cluster.spec(), sets=["robot2.sleeper.period=2.0"])
     assert first.ok and second.ok

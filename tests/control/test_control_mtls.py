@@ -13,11 +13,11 @@ import shutil
 import psutil
 import pytest
 
-from fleet.control import certificates as c
-from fleet.control import protocol as p
-from fleet.control.session import open_client
 from fleet.errors import ControlError
 from fleet.testing.poll import poll
+from fleet.wire import certificates as c
+from fleet.wire import protocol as p
+from fleet.wire.session import open_client
 
 pytestmark = pytest.mark.integration
 

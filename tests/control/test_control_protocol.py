@@ -7,11 +7,11 @@ import json
 import pytest
 import yaml
 
-from fleet.control import protocol as p
-from fleet.control.agent import read_log
-from fleet.control.reconcile import plan_changes
-from fleet.control.state import AgentStore, FleetState
-from fleet.control.units import with_overrides
+from fleet.server.agent import read_log
+from fleet.server.reconcile import plan_changes
+from fleet.server.state import AgentStore, FleetState
+from fleet.server.units import with_overrides
+from fleet.wire import protocol as p
 
 DIGEST = "ab" * 32
 
@@ -219,6 +219,6 @@ def test_read_log_tails_then_follows_whole_lines(tmp_path):
 
 @pytest.mark.parametrize("name", ["hostA", "lab-pc.3", "_x", "a" * 63, "a" * 64, "-x", ".x", "a/b", "a*", "", "é"])
 def test_key_name_rule_matches_the_spec_rule(name):
-    from fleet.spec.names import key_name_problem
+    from fleet.rules import key_name_problem
 
     assert (p.key_name_problem(name) is None) == (key_name_problem(name) is None)

@@ -21,12 +21,8 @@ def node_pids(view) -> dict[str, set[int]]:
     return {row.name: set(row.pids) for row in view.robots}
 
 
-def test_robots_keep_running_and_agents_reconnect_when_the_router_restarts(fresh_cluster):
-    cluster = fresh_cluster
-    cluster.start_router()
-    cluster.start_agent("hostA")
-    cluster.start_agent("hostB")
-    cluster.wait_agents_online("hostA", "hostB")
+def test_robots_keep_running_and_agents_reconnect_when_the_router_restarts(fresh_two_agents):
+    cluster = fresh_two_agents
     first = cluster.deploy(cluster.spec())
     assert first.ok
     before = cluster.view("tiny")

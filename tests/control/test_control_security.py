@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.control import protocol as p
-from fleet.control.session import open_client
 from fleet.errors import ControlError
 from fleet.testing.poll import poll
+from fleet.wire import protocol as p
+from fleet.wire.session import open_client
 
 pytestmark = pytest.mark.integration
 

@@ -15,10 +15,10 @@ import time
 import pytest
 import yaml
 
-from fleet.control import protocol as p
-from fleet.control.view import build_view, locate_world
 from fleet.errors import ControlError, FleetError
+from fleet.plan import build_view, locate_world
 from fleet.testing.poll import poll
+from fleet.wire import protocol as p
 from tests.control.control_helpers import DATA, Cluster, robot
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

@@ -6,10 +6,10 @@ from typing import Literal
 
 import pytest
 
-from fleet.control import protocol as p
-from fleet.control.view import NO_COMMANDS, STARTUP_GRACE, WORLD_SILENT, build_view
 from fleet.dataplane.discovery import plan_discovery
+from fleet.plan.view import NO_COMMANDS, STARTUP_GRACE, WORLD_SILENT, build_view
 from fleet.runtime.environment import discovery_server_port, ros_environment
+from fleet.wire import protocol as p
 
 OLD = STARTUP_GRACE + 60  # node uptime long past start-up
 
@@ -182,7 +182,7 @@ def test_an_agent_address_that_is_not_an_address_is_one_line_and_exit_2():
 
 
 def test_zenoh_bridges_carry_each_remote_robot_both_ways_and_the_clock():
-    from fleet.dataplane.topics import bridge_routes
+    from fleet.wire.topics import bridge_routes
 
     routes = bridge_routes("sim", [("a1", "/a1", "rack_a"), ("w1", "/w1", "sim"), ("b1", "/fleet/b1", "rack_b")])
     names = {
@@ -215,9 +215,9 @@ def test_with_zenoh_every_agent_gets_its_own_loopback_discovery_server():
 
 
 def test_ros_tools_get_the_fleets_domain_and_discovery_server():
-    from fleet.cli.control_cmd import tool_environment
-    from fleet.control.view import FleetView
+    from fleet.client import tool_environment
     from fleet.errors import FleetError
+    from fleet.plan import FleetView
 
     view = FleetView(
         agents=[],

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.control import limits, protocol
 from fleet.errors import SpecError
 from fleet.expand import expand_fleet
 from fleet.spec import parse_spec
+from fleet.wire import limits, protocol
 from fleet.world import geometry
 from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D, RobotSpec, WorldSpec
 
@@ -139,7 +139,7 @@ ZENOH = "fleet: demo\nros: {transport: zenoh}\nworld: {agent: sim}\n"
 def test_the_size_bound_counts_the_zenoh_bridge_routes():
     """With the `zenoh` transport a deploy message also carries the agent's bridge routes; the
     bound render checks is above each real message, routes included."""
-    from fleet.control.deploy import requests_for
+    from fleet.plan import requests_for
 
     agents = "agents: {sim: {}, rack: {}}\n"
     robots = "robots:\n" + "".join(f"  - {{name: r{i}, agent: rack, pose: {{x: {i}}}}}\n" for i in range(40))

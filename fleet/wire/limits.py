@@ -1,7 +1,7 @@
 """What an agent accepts: the limits of the control-plane messages and of the bundles in them.
 
 Far above a real robot's launch description, far below what could hurt an agent.  Apart from
-fleet.control.protocol (which imports pydantic and builds every message model) so that
+fleet.wire.protocol (which imports pydantic and builds every message model) so that
 `fleet render` can refuse what an agent would refuse without paying for the whole protocol.
 """
 

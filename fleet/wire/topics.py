@@ -12,30 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pydantic import BaseModel, ConfigDict, Field
-
-MAX_ROUTES = 5000  # one way, per agent: the world's agent carries 3 for each robot elsewhere (render checks)
-
-
-class TopicRoute(BaseModel):
-    """One ROS topic a Zenoh bridge carries (on the wire in ApplyRequest.bridge)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    name: str = Field(pattern=r"^(/[A-Za-z_][A-Za-z0-9_]{0,62}){1,8}$")
-    type: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z_][A-Za-z0-9_]*$")
-    reliable: bool = True
-    transient_local: bool = False
-    depth: int = Field(10, ge=1, le=1000)
-
-
-class BridgeRoutes(BaseModel):
-    """What an agent's Zenoh bridge sends out (local ROS -> Zenoh) and brings in (Zenoh -> local ROS)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    exports: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
-    imports: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
+from fleet.wire.protocol import BridgeRoutes, TopicRoute
 
 
 @dataclass(frozen=True)

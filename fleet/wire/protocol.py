@@ -28,27 +28,22 @@ from __future__ import annotations
 import hashlib
 import ipaddress
 import json
-import re
 from collections.abc import Mapping
 from typing import Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from fleet.control.limits import MAX_BUNDLES as MAX_BUNDLES
-from fleet.control.limits import MAX_FILE_BYTES as MAX_FILE_BYTES
-from fleet.control.limits import MAX_FILES_PER_BUNDLE as MAX_FILES_PER_BUNDLE
-from fleet.control.limits import MAX_LOG_LINES as MAX_LOG_LINES
-from fleet.control.limits import MAX_MESSAGE_BYTES as MAX_MESSAGE_BYTES
-from fleet.control.limits import check_file_name as check_file_name
-from fleet.control.limits import files_problem
-from fleet.dataplane.topics import BridgeRoutes as BridgeRoutes  # part of the protocol (ApplyRequest.bridge)
+from fleet.rules import ROS_TOKEN_PATTERN, ros_name_problem
+from fleet.rules import key_name_problem as key_name_problem
+from fleet.wire.limits import MAX_BUNDLES as MAX_BUNDLES
+from fleet.wire.limits import MAX_FILE_BYTES as MAX_FILE_BYTES
+from fleet.wire.limits import MAX_FILES_PER_BUNDLE as MAX_FILES_PER_BUNDLE
+from fleet.wire.limits import MAX_LOG_LINES as MAX_LOG_LINES
+from fleet.wire.limits import MAX_MESSAGE_BYTES as MAX_MESSAGE_BYTES
+from fleet.wire.limits import check_file_name as check_file_name
+from fleet.wire.limits import files_problem
 
 VERSION: Final = 1
-
-_ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
-# Fleet and agent names: the rule of fleet.spec.names.key_name_problem, repeated here so that
-# `fleet status` need not import the spec package (start-up time); a test checks they agree.
-_KEY_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,62}")
 
 
 def address_problem(address: object) -> str | None:
@@ -156,12 +151,6 @@ def fleet_of_key(key: str) -> str | None:
 # Field checks
 
 
-def key_name_problem(name: object) -> str | None:
-    if not isinstance(name, str) or not _KEY_NAME.fullmatch(name):
-        return f"{name!r} is not a valid name: use letters, digits, '_', '-', '.' (not first), at most 63"
-    return None
-
-
 def _check_key_name(value: str) -> str:
     problem = key_name_problem(value)
     if problem:
@@ -170,7 +159,7 @@ def _check_key_name(value: str) -> str:
 
 
 def _check_ros_name(value: str) -> str:
-    if not _ROS_TOKEN.fullmatch(value):
+    if ros_name_problem(value) is not None:
         raise ValueError(f"{value!r} is not a valid ROS name")
     return value
 
@@ -250,6 +239,30 @@ def hot_digest(files: dict[str, str], hot_files: list[str]) -> str:
     for name in sorted(hot_files):
         h.update(name.encode() + b"\0" + files.get(name, "").encode() + b"\0")
     return h.hexdigest()
+
+
+MAX_ROUTES = 5000  # one way, per agent: the world's agent carries 3 for each robot elsewhere (render checks)
+
+
+class TopicRoute(BaseModel):
+    """One ROS topic a Zenoh bridge carries (on the wire in ApplyRequest.bridge)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(pattern=rf"^(/{ROS_TOKEN_PATTERN}){{1,8}}$")
+    type: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z_][A-Za-z0-9_]*$")
+    reliable: bool = True
+    transient_local: bool = False
+    depth: int = Field(10, ge=1, le=1000)
+
+
+class BridgeRoutes(BaseModel):
+    """What an agent's Zenoh bridge sends out (local ROS -> Zenoh) and brings in (Zenoh -> local ROS)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    exports: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
+    imports: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
 
 
 class ApplyRequest(Message):
@@ -546,6 +559,11 @@ class LogsReply(Message):
     cursor: dict[str, int]
 
 
+# How long an agent waits for a node's parameter service: a loaded host needs seconds for
+# rclpy start-up and discovery.  A client waits this long plus the round trip.
+PARAM_TIMEOUT = 30.0
+
+
 class ParamRequest(Message):
     kind: Literal["param"] = "param"
     fleet: str
@@ -608,7 +626,7 @@ class DesiredDone(Message):
     """The router's reply, besides the states, to every DesiredQuery for any fleet
     (`fleet/*/desired/<agent>`, an agent's periodic ask; a query for one fleet gets only its
     state): the router heard the agent.  A query that gets no reply at all while the router is
-    connected means the agent's session has stalled (fleet.control.agent replaces it)."""
+    connected means the agent's session has stalled (fleet.server.agent replaces it)."""
 
     kind: Literal["desired_done"] = "desired_done"
     sent: int = Field(0, ge=0)  # desired states sent with it (Zenoh may deliver them after it)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fleet.control.protocol import BundleMessage, Changes
+from fleet.wire.protocol import BundleMessage, Changes
 
 
 def plan_changes(

@@ -14,7 +14,11 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from fleet.control.protocol import (
+from fleet.errors import SpecError
+from fleet.files import write_atomic
+from fleet.rules import WORLD_STATUS_FILE, unit_log_dir
+from fleet.spec.yaml_source import safe_load
+from fleet.wire.protocol import (
     BundleMessage,
     NodeState,
     RobotState,
@@ -23,12 +27,8 @@ from fleet.control.protocol import (
     check_file_name,
     world_summary,
 )
-from fleet.errors import SpecError
-from fleet.files import write_atomic
-from fleet.spec.yaml_source import safe_load
 
 UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
-WORLD_STATUS_FILE = "world.status.json"  # written by the world next to world.yaml (templates/world.launch.yaml.j2)
 
 if TYPE_CHECKING:
     from fleet.runtime.hosting import HostPool
@@ -61,7 +61,7 @@ class Unit:
 
     @property
     def log_dir(self) -> Path:
-        return self.directory / "logs"
+        return unit_log_dir(self.directory)
 
     # -- files ----------------------------------------------------------------------------------
 

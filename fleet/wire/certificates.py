@@ -6,7 +6,7 @@ per operator (client use).  The common name is the member's name: the router's a
 match agents by it.  The organization is the fleet's name, so a certificate can say which fleet
 it was made for.
 
-The checks run before a session opens (fleet.control.session), because Zenoh's own refusal of a
+The checks run before a session opens (fleet.wire.session), because Zenoh's own refusal of a
 bad certificate is a failed handshake that names no file.
 """
 

@@ -98,7 +98,7 @@ def _base_config(user_config: Path | None):
 
 def _check_tls_files(config) -> None:
     """Say which certificate is unusable and why, before Zenoh fails a handshake naming none."""
-    from fleet.control.certificates import check_certificate, check_key
+    from fleet.wire.certificates import check_certificate, check_key
 
     tls = json.loads(config.get_json("transport/link/tls"))
     authority = Path(tls["root_ca_certificate"]) if tls.get("root_ca_certificate") else None

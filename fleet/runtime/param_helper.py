@@ -2,8 +2,8 @@
 
 Run by the agent as a subprocess, in the fleet's ROS environment (its ROS_DOMAIN_ID):
 
-    python -m fleet.control.param_helper get /robot1/controller max_speed
-    python -m fleet.control.param_helper set /robot1/controller max_speed 0.8   # value as JSON
+    python -m fleet.runtime.param_helper get /robot1/controller max_speed
+    python -m fleet.runtime.param_helper set /robot1/controller max_speed 0.8   # value as JSON
 
 Prints one JSON line: {"v": 1, "kind": "param_reply", "ok": ..., "value": ..., "reason": ...}.
 A set is typed after the parameter's current type (1 becomes 1.0 for a double, as people

@@ -37,20 +37,21 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fleet import __version__
-from fleet.control import protocol as p
-from fleet.control.reconcile import plan_changes
-from fleet.control.session import AGENT_LEASE_MS, open_client_retrying
-from fleet.control.state import AgentStore, FleetState
-from fleet.control.units import UNIT_MARKER, Unit
 from fleet.files import write_atomic
+from fleet.rules import hosts_dir, services_dir
+from fleet.runtime.processes import stop_all
+from fleet.server.reconcile import plan_changes
+from fleet.server.state import AgentStore, FleetState
+from fleet.server.units import UNIT_MARKER, Unit
 from fleet.spec.model import DEFAULT_GROUP_SIZE
+from fleet.wire import protocol as p
+from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
 
 if TYPE_CHECKING:
     import zenoh
 
 log = logging.getLogger("fleet.agent")
 
-PARAM_TIMEOUT = 30.0  # a loaded host needs seconds for rclpy start-up and discovery
 DESIRED_POLL = 3.0  # how often to ask the router for desired states newer than ours
 DESIRED_TIMEOUT = 5.0
 # Desired-state queries in a row that the connected router does not answer: the session has
@@ -387,12 +388,7 @@ class Agent:
             {name for name, unit in units.items() if unit.error or unit.session is None or unit.env != env},
         )
         # Stop first (in parallel: each stop may wait seconds for a node to exit), then start.
-        leaving = [units[name] for name in changes.stop + changes.restart]
-        stoppers = [threading.Thread(target=unit.stop) for unit in leaving]
-        for thread in stoppers:
-            thread.start()
-        for thread in stoppers:
-            thread.join()
+        stop_all(units[name].stop for name in changes.stop + changes.restart)
         with self._lock:
             for name in changes.stop:
                 self._units.pop((fleet, name), None)
@@ -427,7 +423,7 @@ class Agent:
         with self._lock:
             pool = self._hosting.get(key)
             if pool is None:
-                directory = self.store.root / "hosts" / f"{fleet}-{len(self._hosting) + 1}"
+                directory = hosts_dir(self.store.root, fleet, len(self._hosting) + 1)
                 pool = self._hosting[key] = HostPool(directory, env, group_size)
         return pool
 
@@ -464,7 +460,7 @@ class Agent:
         from fleet.dataplane.discovery import discovery_server
         from fleet.runtime.processes import ServiceProcess
 
-        directory = self.store.root / "services"
+        directory = services_dir(self.store.root)
         if kind == "discovery":
             return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
         config = directory / f"{fleet}.bridge.json"
@@ -518,11 +514,7 @@ class Agent:
         with self._lock:
             units = list(self._units.values())
             self._units.clear()
-        threads = [threading.Thread(target=unit.stop) for unit in units]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join()
+        stop_all(unit.stop for unit in units)
         with self._lock:
             pools = list(self._hosting.values())
             self._hosting.clear()
@@ -689,13 +681,13 @@ def call_parameter_service(fqn: str, request: p.ParamRequest, env: dict[str, str
     """Run the rclpy helper in a subprocess (rclpy must not share the agent's process)."""
     import json
 
-    command = [sys.executable, "-m", "fleet.control.param_helper", request.op, fqn, request.name]
+    command = [sys.executable, "-m", "fleet.runtime.param_helper", request.op, fqn, request.name]
     if request.op == "set":
         command.append(json.dumps(request.value))
     try:
-        done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=PARAM_TIMEOUT)
+        done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=p.PARAM_TIMEOUT)
     except subprocess.TimeoutExpired:
-        return p.ParamReply(ok=False, reason=f"no answer from {fqn} within {PARAM_TIMEOUT:.0f} s")
+        return p.ParamReply(ok=False, reason=f"no answer from {fqn} within {p.PARAM_TIMEOUT:.0f} s")
     try:
         return p.ParamReply.model_validate_json(done.stdout.strip().splitlines()[-1])
     except Exception:

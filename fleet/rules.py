@@ -1,8 +1,15 @@
-"""Name rules.  Robot names become ROS namespaces, agent and fleet names become Zenoh key parts."""
+"""Rules shared by every stage: names, reserved names, file names, the state directory's layout.
+
+Robot names become ROS namespaces, agent and fleet names become Zenoh key parts and file names.
+Dependency-free (the standard library only), so the spec, the wire protocol, the agent and the
+CLI all read the same rule without paying for one another's imports.
+"""
 
 from __future__ import annotations
 
+import os
 import re
+from pathlib import Path
 
 # ROS 2 name tokens (rmw_validate_node_name / namespace tokens): letters, digits, underscores,
 # not starting with a digit.
@@ -10,6 +17,8 @@ _ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 # Zenoh key chunks must not contain / * $ ? # and we keep them boring on purpose.
 _KEY_CHUNK = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 MAX_NAME_LENGTH = 63
+# One token of a ROS name, length bound included: for patterns elsewhere (pydantic fields).
+ROS_TOKEN_PATTERN = rf"[A-Za-z_][A-Za-z0-9_]{{0,{MAX_NAME_LENGTH - 1}}}"
 # rmw (validate_full_topic_name.h): a fully qualified topic or service name has at most 255 - 8
 # characters, 8 being reserved for the DDS prefixes; a namespace 2 fewer (validate_namespace.h),
 # room for the shortest name in it.  Both checked with rclpy's validators.
@@ -25,6 +34,89 @@ WORLD_UNIT = "world"
 RESERVED_UNIT_NAMES = frozenset({WORLD_UNIT})
 # The template of the world unit: no robot can run it.
 WORLD_TEMPLATE = "world"
+# The agent the local daemon (`fleet up`) runs, and the one a spec gets when it names none.
+LOCAL_AGENT = "local"
+
+# ---------------------------------------------------------------------------------------------
+# File names of a bundle and of the templates
+
+LAUNCH_SUFFIX = ".launch.yaml"  # the launch file a unit runs (its entry)
+PYTHON_LAUNCH_SUFFIX = ".launch.py"  # the same description as a Python launch file
+PARAMS_SUFFIX = ".params.yaml"  # a robot's ROS parameters; beside a template: its defaults
+TEMPLATE_SUFFIX = ".launch.yaml.j2"
+# Written by the world unit next to its world.yaml (templates/world.launch.yaml.j2).
+WORLD_STATUS_FILE = "world.status.json"
+
+# ---------------------------------------------------------------------------------------------
+# The state directory ($FLEET_STATE_DIR or ~/.local/state/fleet) of the local daemon:
+#
+#     daemon.pid  daemon.log       the daemon process and its log (router and agent)
+#     router/registry.json         what was deployed where (fleet.server.router)
+#     agents/<agent>/              an agent's own state directory, below
+#
+# An agent's state directory:
+#
+#     agent.json                   name of the agent owning the directory
+#     desired/<fleet>.json         the accepted desired state plus live parameter overrides
+#     units/<fleet>/<robot>/       bundle files as written for the runner, logs/ beside them
+#     hosts/<fleet>-<n>/           logs of the host processes of `isolation: agent`
+#     services/<fleet>.*           the fleet's discovery server and Zenoh bridge: config, logs
+
+STATE_VARIABLE = "FLEET_STATE_DIR"
+
+
+def state_dir() -> Path:
+    value = os.environ.get(STATE_VARIABLE)
+    return Path(value).expanduser() if value else Path.home() / ".local" / "state" / "fleet"
+
+
+def daemon_pid_file(root: Path) -> Path:
+    return root / "daemon.pid"
+
+
+def daemon_log_file(root: Path) -> Path:
+    return root / "daemon.log"
+
+
+def router_dir(root: Path) -> Path:
+    return root / "router"
+
+
+def registry_file(router: Path) -> Path:
+    """The registry file in a router's state directory."""
+    return router / "registry.json"
+
+
+def agent_dir(root: Path, agent: str) -> Path:
+    return root / "agents" / agent
+
+
+def agent_marker_file(agent: Path) -> Path:
+    return agent / "agent.json"
+
+
+def desired_dir(agent: Path) -> Path:
+    return agent / "desired"
+
+
+def units_dir(agent: Path) -> Path:
+    return agent / "units"
+
+
+def unit_dir(agent: Path, fleet: str, robot: str) -> Path:
+    return units_dir(agent) / fleet / robot
+
+
+def unit_log_dir(unit: Path) -> Path:
+    return unit / "logs"
+
+
+def services_dir(agent: Path) -> Path:
+    return agent / "services"
+
+
+def hosts_dir(agent: Path, fleet: str, number: int) -> Path:
+    return agent / "hosts" / f"{fleet}-{number}"
 
 
 def ros_name_problem(name: object) -> str | None:

@@ -1,6 +1,6 @@
 """Zenoh config files for a fleet on an untrusted network: mutual TLS and access rules.
 
-`fleet certs` writes, beside the fleet's certificates (fleet.control.certificates):
+`fleet certs` writes, beside the fleet's certificates (fleet.wire.certificates):
 - router.json5: listens with TLS, demands a client certificate from the fleet's authority, and
   lets each agent's certificate (matched by its common name) reach only that agent's keys
   (protocol.agent_key_exprs) while operators' certificates reach every key of the fleet;
@@ -14,8 +14,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from fleet.control import certificates as certs
-from fleet.control import protocol as p
+from fleet.wire import certificates as certs
+from fleet.wire import protocol as p
 
 ROUTER = "router"
 # Every message kind Zenoh's access control knows.

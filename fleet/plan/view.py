@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from fleet.control import protocol as p
+from fleet.wire import protocol as p
 
 
 @dataclass

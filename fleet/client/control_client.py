@@ -1,4 +1,4 @@
-"""The CLI's side of the protocol: one short-lived Zenoh client session and typed requests."""
+"""The client's side of the protocol: one short-lived Zenoh client session and typed requests."""
 
 from __future__ import annotations
 
@@ -7,15 +7,21 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fleet.control import protocol as p
-from fleet.control.session import open_client
 from fleet.errors import ControlError
+from fleet.wire import protocol as p
+from fleet.wire.session import config_file, default_endpoint, open_client
 
 if TYPE_CHECKING:
     import zenoh
 
 STATUS_TIMEOUT = 3.0
 APPLY_TIMEOUT = 10.0
+
+
+def connect(endpoint: str | None = None, zenoh_config: Path | None = None) -> ControlClient:
+    """A client of the router at `endpoint` (default: $FLEET_CONNECT or the local one), with the
+    Zenoh config file given or named by $FLEET_ZENOH_CONFIG."""
+    return ControlClient([endpoint or default_endpoint()], config_file(zenoh_config))
 
 
 class ControlClient:
@@ -87,6 +93,15 @@ class ControlClient:
     ) -> p.MessageT:
         handler = self.session.get(key, payload=p.encode(message), timeout=timeout)
         return _one_reply(handler, model, what)
+
+    def logs(self, agent: str, request: p.LogsRequest, timeout: float = 20.0) -> p.LogsReply:
+        return self.request(p.logs_key(request.fleet, agent), request, p.LogsReply, f"agent {agent}", timeout)
+
+    def param(self, agent: str, request: p.ParamRequest) -> p.ParamReply:
+        """Get or set a node's parameter through its agent: the agent's own wait, plus the round trip."""
+        return self.request(
+            p.param_key(request.fleet, agent), request, p.ParamReply, f"agent {agent}", p.PARAM_TIMEOUT + 5
+        )
 
     def world(self, fleet: str, agent: str, timeout: float = STATUS_TIMEOUT) -> p.WorldReply:
         """The full world state (trails, lidar hits, obstacles) from the agent running it."""

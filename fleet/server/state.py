@@ -1,9 +1,5 @@
-"""An agent's state directory: desired state per fleet (persisted before acknowledging) and units.
-
-    <state-dir>/
-      agent.json                      name of the agent owning the directory
-      desired/<fleet>.json            the accepted ApplyRequest plus live parameter overrides
-      units/<fleet>/<robot>/          bundle files as written for the runner, logs/ beside them
+"""An agent's state directory (laid out as fleet.rules says): desired state per fleet, persisted
+before acknowledging, and units.
 
 Writes are atomic (temporary file, fsync, rename, fsync of the directory), so a crash leaves
 either the old or the new desired state, never half of one.
@@ -17,8 +13,9 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from fleet.control.protocol import ApplyRequest
+from fleet import rules
 from fleet.files import write_atomic
+from fleet.wire.protocol import ApplyRequest
 
 
 class FleetState(BaseModel):
@@ -41,13 +38,12 @@ class AgentStore:
     def __init__(self, root: Path, agent: str):
         self.root = root
         self.agent = agent
-        self.desired_dir = root / "desired"
-        self.units_dir = root / "units"
+        self.desired_dir = rules.desired_dir(root)
 
     def claim(self) -> None:
         """Create the directory; refuse one that belongs to another agent name."""
         self.root.mkdir(parents=True, exist_ok=True)
-        marker = self.root / "agent.json"
+        marker = rules.agent_marker_file(self.root)
         if marker.exists():
             owner = json.loads(marker.read_text()).get("name")
             if owner != self.agent:
@@ -74,4 +70,4 @@ class AgentStore:
         write_atomic(self.desired_dir / f"{state.fleet}.json", state.model_dump_json(), durable=True)
 
     def unit_dir(self, fleet: str, robot: str) -> Path:
-        return self.units_dir / fleet / robot
+        return rules.unit_dir(self.root, fleet, robot)

@@ -19,8 +19,9 @@ import threading
 import time
 from pathlib import Path
 
-from fleet.control import protocol as p
 from fleet.files import write_atomic
+from fleet.rules import registry_file
+from fleet.wire import protocol as p
 
 log = logging.getLogger("fleet.router")
 
@@ -179,9 +180,9 @@ def serve_router(session, registry: Registry):
 
 
 def run_router(listen: list[str], zenoh_config: Path | None, state_dir: Path | None, stop: threading.Event) -> None:
-    from fleet.control.session import open_router
+    from fleet.wire.session import open_router
 
-    registry = Registry(state_dir / "registry.json" if state_dir else None)
+    registry = Registry(registry_file(state_dir) if state_dir else None)
     with open_router(listen, zenoh_config) as session:
         entities = serve_router(session, registry)
         log.info("router listening on %s", ", ".join(listen))

@@ -1,0 +1,218 @@
+"""Deploying commands: deploy, diff, down.
+
+The work is fleet.client's (deploy, down) and fleet.plan's (diff); here: options and output.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import typer
+
+from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client
+
+if TYPE_CHECKING:
+    from rich.progress import TaskID
+
+
+def register(app: typer.Typer) -> None:
+    app.command("down")(down)
+    app.command("deploy")(deploy)
+    app.command("diff")(diff)
+
+
+def down(
+    spec: Path | None = typer.Argument(None, help="Fleet spec whose fleet to stop."),
+    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Name of the fleet to stop."),
+    all_: bool = typer.Option(False, "--all", help="Stop every fleet, then the local daemon."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Stop a fleet's robots on every agent (`--all`: every fleet and the local daemon)."""
+    from fleet.client import down as stop_fleet
+    from fleet.client import local_daemon
+    from fleet.errors import ControlError, FleetError
+
+    if spec is not None:
+        from fleet.spec import load_spec
+
+        fleet = load_spec(spec).fleet
+    if fleet is None and not all_:
+        raise FleetError("say which fleet: fleet down SPEC, --fleet NAME, or --all")
+    failed = False
+    try:
+        with client(connect, zenoh_config) as control:
+            if all_:
+                statuses, registries = control.status(None)
+                fleets = sorted({s.fleet for s in statuses if s.fleet} | {r.fleet for r in registries})
+            else:
+                assert fleet is not None  # refused above unless --all
+                fleets = [fleet]
+            for name in fleets:
+                replies = stop_fleet(control, name)
+                for agent_name, reply in sorted(replies.items()):
+                    if isinstance(reply, ControlError):
+                        failed = True
+                        typer.echo(f"{name}: {agent_name}: {reply}", err=True)
+                typer.echo(f"fleet {name}: stopped on {len(replies)} agent(s)")
+    except ControlError as error:
+        if not all_:
+            raise
+        typer.echo(f"no router: {error}", err=True)
+    if all_ and local_daemon.stop():
+        typer.echo("local daemon stopped")
+    if failed:
+        raise typer.Exit(1)
+
+
+def deploy(
+    spec: Path = typer.Argument(..., help="Fleet spec file, e.g. fleets/two_robots.yaml."),
+    set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    wait: bool = typer.Option(True, "--wait/--no-wait", help="Wait until every robot's nodes run."),
+    timeout: float = typer.Option(60.0, "--timeout", help="Seconds to wait for the fleet to come up."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+    json: bool = typer.Option(False, "--json", help="Print the outcome as JSON."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Only show what would be deployed; send nothing."),
+) -> None:
+    """Send each agent its robots' launch descriptions, wait until they run, show the status."""
+    from fleet.cli.output import console, print_json
+    from fleet.cli.render_cmd import load_and_expand
+    from fleet.client import deploy as deploy_fleet
+    from fleet.client.local_daemon import connect_or_start
+    from fleet.rules import LOCAL_AGENT
+
+    expansion = load_and_expand(spec, set_)  # a bad spec raises here, before anything is sent
+    if dry_run:
+        from fleet.cli.plan_view import plan_data, print_plan
+
+        print_json(plan_data(expansion)) if json else print_plan(expansion, console())
+        return
+    needs_local = bool(expansion.for_agent(LOCAL_AGENT))
+    with connect_or_start(connect, zenoh_config, needs_local, lambda line: typer.echo(line, err=True)) as control:
+        progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())
+        with progress:
+            outcome = deploy_fleet(control, expansion, wait=wait, timeout=timeout, on_progress=progress.update)
+    if json:
+        print_json(outcome.to_json())
+    else:
+        _print_outcome(outcome, console())
+    if not outcome.ok and (wait or outcome.unreachable or outcome.refused or outcome.superseded_by):
+        raise typer.Exit(1)
+
+
+class _DeployProgress:
+    """One rich progress bar per robot: nodes running out of nodes total."""
+
+    def __init__(self, console, enabled: bool):
+        self.enabled = enabled
+        self.tasks: dict[str, TaskID] = {}
+        self.progress = None
+        if enabled:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.progress = Progress(
+                TextColumn("{task.description:<16}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[state]}"),
+                TimeElapsedColumn(),
+                console=console,
+                transient=True,
+            )
+
+    def __enter__(self):
+        if self.progress is not None:
+            self.progress.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.progress is not None:
+            self.progress.stop()
+
+    def update(self, robots) -> None:
+        if self.progress is None:
+            return
+        for robot in robots:
+            if robot.name not in self.tasks:
+                self.tasks[robot.name] = self.progress.add_task(robot.name, total=max(robot.total, 1), state="")
+            self.progress.update(
+                self.tasks[robot.name], total=max(robot.total, 1), completed=robot.running, state=robot.state
+            )
+
+
+def _print_outcome(outcome, out) -> None:
+    from fleet.cli.status_view import print_view
+    from fleet.wire import protocol as p
+
+    for agent_name, reply in sorted(outcome.replies.items()):
+        if not isinstance(reply, p.ApplyReply):
+            out.print(f"[red]agent {agent_name}: unreachable[/red] ({reply}); its robots stay pending")
+        elif not reply.accepted:
+            out.print(f"[red]agent {agent_name} refused generation {reply.generation}:[/red] {reply.reason}")
+        elif not reply.changes.nothing:
+            c = reply.changes
+            parts = [
+                f"{label} {', '.join(names)}"
+                for label, names in (
+                    ("started", c.start),
+                    ("restarted", c.restart),
+                    ("hot-updated", c.hot_update),
+                    ("stopped", c.stop),
+                    ("unchanged", c.unchanged),
+                )
+                if names
+            ]
+            out.print(f"agent {agent_name}: " + "; ".join(parts))
+    if outcome.nothing_changed:
+        out.print("nothing changed: every robot was already running this description (no restarts)")
+    if outcome.superseded_by:
+        out.print(f"[yellow]superseded:[/yellow] a later deploy (generation {outcome.superseded_by}) won")
+    if outcome.view is not None:
+        print_view(outcome.view, out, agents=False)
+    if outcome.discovery is not None and outcome.discovery.note:
+        out.print(f"[yellow]note:[/yellow] {outcome.discovery.note}")
+    if outcome.timed_out:
+        stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
+        out.print(
+            "[red]timed out[/red] waiting for every robot to run; not running: "
+            + "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
+        )
+    elif outcome.ok:
+        out.print("[green]fleet up[/green]")
+
+
+def diff(
+    spec: Path = typer.Argument(..., help="Fleet spec file."),
+    set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+    json: bool = typer.Option(False, "--json"),
+) -> None:
+    """Show what `fleet deploy SPEC` would change, robot by robot."""
+    from dataclasses import asdict
+
+    from fleet.cli.output import console, print_json
+    from fleet.cli.render_cmd import load_and_expand
+    from fleet.plan import build_view
+    from fleet.plan import diff as plan_diff
+
+    expansion = load_and_expand(spec, set_)
+    with client(connect, zenoh_config) as control:
+        statuses, registries = control.status(expansion.fleet)
+    rows = plan_diff(expansion, build_view(statuses, registries, time.time()))
+    if json:
+        print_json([asdict(row) for row in rows])
+        return
+    from fleet.cli.output import table as make_table
+
+    colours = {"start": "green", "stop": "red", "restart": "yellow", "move": "yellow", "hot-update": "cyan"}
+    table = make_table("robot", "agent", "change", "detail", title=f"fleet {expansion.fleet}: deploy would")
+    for row in rows:
+        colour = colours.get(row.change)
+        change = f"[{colour}]{row.change}[/{colour}]" if colour else row.change
+        table.add_row(row.robot, row.agent, change, row.detail)
+    console().print(table)

@@ -1,0 +1,24 @@
+"""Options shared by several command groups, and the client the commands that talk to a router open."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import typer
+
+if TYPE_CHECKING:
+    from fleet.client import ControlClient
+
+CONNECT_HELP = "Router endpoint to connect to (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."
+SET_HELP = "Override a parameter: ROBOT.NODE.PARAM=VALUE (value parsed as YAML; repeatable)."
+ZENOH_CONFIG_HELP = "Zenoh JSON5 config file for TLS, user/password or access control (or $FLEET_ZENOH_CONFIG)."
+
+ConnectOption = typer.Option(None, "--connect", "-c", help=CONNECT_HELP)
+ZenohConfigOption = typer.Option(None, "--zenoh-config", help=ZENOH_CONFIG_HELP)
+
+
+def client(connect: str | None, zenoh_config: Path | None) -> ControlClient:
+    from fleet.client import connect as connect_client
+
+    return connect_client(connect, zenoh_config)

@@ -1,0 +1,117 @@
+"""Commands on one robot, through its agent: logs, param get/set."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Literal
+
+import typer
+
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+
+
+def register(app: typer.Typer) -> None:
+    app.command("logs")(logs)
+    param_app = typer.Typer(help="Read or change a node's ROS parameter live, through its agent.", no_args_is_help=True)
+    param_app.command("get")(param_get)
+    param_app.command("set")(param_set)
+    app.add_typer(param_app, name="param")
+
+
+def logs(
+    robot: str = typer.Argument(..., help="Robot name (or `world`)."),
+    node: str | None = typer.Argument(None, help="Node name (default: every node of the robot)."),
+    follow: bool = typer.Option(False, "--follow", "-f", help="Keep printing new lines until Ctrl-C."),
+    tail: int = typer.Option(50, "--tail", "-n", help="Lines to show first (per node)."),
+    fleet: str | None = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Print a robot's node logs, streamed from its agent."""
+    from fleet.client import locate_robot
+    from fleet.wire import protocol as p
+
+    with client(connect, zenoh_config) as control:
+        fleet_name, agent_name = locate_robot(control, robot, fleet)
+        cursor = None
+        try:
+            while True:
+                request = p.LogsRequest(fleet=fleet_name, robot=robot, node=node, tail=tail, cursor=cursor)
+                reply = control.logs(agent_name, request)
+                nodes = {line.node for line in reply.lines}
+                for line in reply.lines:
+                    prefix = f"[{line.node}] " if node is None and len(nodes) > 1 else ""
+                    sys.stdout.write(f"{prefix}{line.text}\n")
+                sys.stdout.flush()
+                if not follow:
+                    break
+                cursor = reply.cursor
+                time.sleep(0.5)
+        except KeyboardInterrupt:
+            pass
+
+
+def _parse_value(text: str):
+    """VALUE as YAML, like `ros2 param set`: 0.8, true, [1.0, 2.0], hello."""
+    from fleet.errors import FleetError, Location
+    from fleet.spec.yaml_source import parse_scalar
+
+    try:
+        return parse_scalar(text)
+    except ValueError as error:
+        raise FleetError(f"cannot parse value: {error}", Location(f"VALUE {text}")) from None
+
+
+def _param(robot: str, node: str, name: str, op: Literal["get", "set"], value, fleet, connect, zenoh_config):
+    from fleet.client import locate_robot
+    from fleet.errors import FleetError
+    from fleet.wire import protocol as p
+
+    with client(connect, zenoh_config) as control:
+        fleet_name, agent_name = locate_robot(control, robot, fleet)
+        try:
+            request = p.ParamRequest(fleet=fleet_name, robot=robot, node=node, name=name, op=op, value=value)
+        except Exception as error:
+            raise FleetError(f"invalid parameter request: {error}") from None
+        return control.param(agent_name, request)
+
+
+def param_get(
+    robot: str = typer.Argument(...),
+    node: str = typer.Argument(...),
+    name: str = typer.Argument(...),
+    fleet: str | None = typer.Option(None, "--fleet"),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Print the current value of a node's parameter."""
+    import json
+
+    reply = _param(robot, node, name, "get", None, fleet, connect, zenoh_config)
+    if not reply.ok:
+        from fleet.errors import error_line
+
+        typer.echo(error_line(reply.reason), err=True)
+        raise typer.Exit(1)
+    typer.echo(json.dumps(reply.value))
+
+
+def param_set(
+    robot: str = typer.Argument(...),
+    node: str = typer.Argument(...),
+    name: str = typer.Argument(...),
+    value: str = typer.Argument(..., help="New value, as YAML (0.8, true, [1.0, 2.0])."),
+    fleet: str | None = typer.Option(None, "--fleet"),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Set a node's parameter live; kept across restarts until the robot's spec changes."""
+    reply = _param(robot, node, name, "set", _parse_value(value), fleet, connect, zenoh_config)
+    if not reply.ok:
+        from fleet.errors import error_line
+
+        typer.echo(error_line(f"{robot}/{node} refused {name}={value}: {reply.reason}"), err=True)
+        raise typer.Exit(1)
+    typer.echo(f"{robot}/{node}: {name} = {reply.value!r} (recorded on the agent)")

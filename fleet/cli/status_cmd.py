@@ -1,0 +1,69 @@
+"""What runs: `fleet status` and `fleet ros-env`."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+
+
+def register(app: typer.Typer) -> None:
+    app.command("status")(status)
+    app.command("ros-env")(ros_env)
+
+
+def status(
+    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Only this fleet."),
+    json: bool = typer.Option(False, "--json", help="Print JSON."),
+    watch: bool = typer.Option(False, "--watch", "-w", help="Refresh every second until Ctrl-C."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Agents (online/offline), robots (state, nodes, restarts, pose, battery) and worlds
+    (sim time, real-time factor, contacts) of every fleet."""
+    from fleet.cli.output import console, print_json
+    from fleet.cli.status_view import print_view, view_tables
+    from fleet.plan import build_view
+
+    with client(connect, zenoh_config) as control:
+        if watch and not json:
+            from rich.console import Group
+            from rich.live import Live
+
+            out = console()
+            with Live(console=out, auto_refresh=False) as live:
+                try:
+                    while True:
+                        view = build_view(*control.status(fleet), time.time())
+                        live.update(Group(*view_tables(view)), refresh=True)
+                        time.sleep(1.0)
+                except KeyboardInterrupt:
+                    pass
+            return
+        view = build_view(*control.status(fleet), time.time())
+    if json:
+        print_json(view.to_json())
+    else:
+        print_view(view, console())
+    if not view.all_running:
+        raise typer.Exit(1)
+
+
+def ros_env(
+    fleet: str | None = typer.Option(None, "--fleet", "-f", help="The fleet (needed when several run)."),
+    agent: str | None = typer.Option(None, "--agent", "-a", help="zenoh transport: the agent on this computer."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Print the environment that lets ROS tools (ros2 topic, rviz2) see a fleet's whole graph:
+    `eval "$(fleet ros-env)"`."""
+    from fleet.client import tool_environment
+    from fleet.plan import build_view
+
+    with client(connect, zenoh_config) as control:
+        view = build_view(*control.status(fleet), time.time())
+    env = tool_environment(view, fleet, agent)
+    typer.echo("export " + " ".join(f"{key}={value}" for key, value in env.items()))

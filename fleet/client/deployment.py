@@ -1,0 +1,174 @@
+"""Deploy and down: send each agent its desired state (planned by fleet.plan) and follow them.
+
+The talking and waiting are here; they report through callbacks, so the CLI decides how it looks.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from fleet.client.control_client import ControlClient
+from fleet.dataplane.discovery import DiscoveryPlan
+from fleet.errors import ControlError
+from fleet.plan.desired import discovery_for, new_generation, plan_record, requests_for, with_planned_agents
+from fleet.plan.view import FleetView, RobotRow, build_view
+from fleet.wire import protocol as p
+
+if TYPE_CHECKING:
+    from fleet.expand.expansion import Expansion
+
+POLL_INTERVAL = 0.1
+
+
+@dataclass
+class Outcome:
+    generation: int
+    replies: dict[str, p.ApplyReply | ControlError] = field(default_factory=dict)
+    view: FleetView | None = None
+    superseded_by: int | None = None
+    timed_out: bool = False
+    discovery: DiscoveryPlan | None = None
+
+    @property
+    def unreachable(self) -> dict[str, str]:
+        return {agent: str(r) for agent, r in self.replies.items() if isinstance(r, ControlError)}
+
+    @property
+    def refused(self) -> dict[str, str]:
+        return {agent: r.reason for agent, r in self.replies.items() if isinstance(r, p.ApplyReply) and not r.accepted}
+
+    @property
+    def nothing_changed(self) -> bool:
+        accepted = [r for r in self.replies.values() if isinstance(r, p.ApplyReply) and r.accepted]
+        return bool(accepted) and len(accepted) == len(self.replies) and all(r.changes.nothing for r in accepted)
+
+    def to_json(self) -> dict[str, Any]:
+        """What `fleet deploy --json` prints."""
+        replies = {}
+        for agent_name, reply in self.replies.items():
+            if isinstance(reply, p.ApplyReply):
+                replies[agent_name] = reply.model_dump()
+            else:
+                replies[agent_name] = {"error": str(reply)}
+        return {
+            "ok": self.ok,
+            "generation": self.generation,
+            "nothing_changed": self.nothing_changed,
+            "superseded_by": self.superseded_by,
+            "timed_out": self.timed_out,
+            "discovery": None
+            if self.discovery is None
+            else {"host": self.discovery.host, "server": self.discovery.server, "note": self.discovery.note},
+            "agents": replies,
+            "status": self.view.to_json() if self.view else None,
+        }
+
+    @property
+    def ok(self) -> bool:
+        return (
+            not self.unreachable
+            and not self.refused
+            and self.superseded_by is None
+            and not self.timed_out
+            and self.view is not None
+            and self.view.all_running
+        )
+
+
+def deploy(
+    client: ControlClient,
+    expansion: Expansion,
+    wait: bool = True,
+    timeout: float = 60.0,
+    on_progress: Callable[[list[RobotRow]], None] | None = None,
+) -> Outcome:
+    statuses, registries = client.status(expansion.fleet)
+    before = build_view(statuses, registries, time.time())
+    outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before))
+    requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
+    outcome.replies = client.send_applies(requests)
+    # After the applies (an agent that took its apply directly then holds this generation already):
+    # the router keeps each desired state for agents that were away, and the plan for status.
+    client.put_desired(
+        with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
+    )
+    client.put_plan(plan_record(expansion, outcome.generation))
+    for reply in outcome.replies.values():
+        if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
+            outcome.superseded_by = max(outcome.superseded_by or 0, reply.current_generation)
+    wanted = {b.name for b in expansion.bundles if not isinstance(outcome.replies.get(b.agent), ControlError)}
+    deadline = time.monotonic() + timeout
+    while True:
+        statuses, registries = client.status(expansion.fleet)
+        view = build_view(statuses, registries, time.time())
+        outcome.view = view.only(expansion.fleet)
+        for (_fleet, _agent), generation in view.generations.items():
+            if generation > outcome.generation:
+                outcome.superseded_by = max(outcome.superseded_by or 0, generation)
+        if on_progress is not None:
+            on_progress(outcome.view.robots)
+        if not wait or outcome.superseded_by is not None:
+            break
+        if _settled(outcome.view, wanted, outcome.generation) or _hopeless(outcome.view, wanted, outcome.generation):
+            break
+        if time.monotonic() >= deadline:
+            outcome.timed_out = True
+            break
+        time.sleep(POLL_INTERVAL)
+    return outcome
+
+
+def _settled(view: FleetView, wanted: set[str], generation: int) -> bool:
+    """Every robot we could send runs at (at least) our generation, and removed ones are gone."""
+    rows = {row.name: row for row in view.robots}
+    for name in wanted:
+        row = rows.get(name)
+        if row is None or row.state != "running" or row.generation < generation:
+            return False
+    # Rows only the registry knows (pending, offline) are not running anywhere: they don't count.
+    return all(row.name in wanted or row.state in ("pending", "offline") for row in view.robots)
+
+
+def _hopeless(view: FleetView, wanted: set[str], generation: int) -> bool:
+    """Every robot is running or failed for good (its launch file could not start): stop waiting."""
+    rows = {row.name: row for row in view.robots}
+    failed = [n for n in wanted if n in rows and rows[n].error and rows[n].generation >= generation]
+    others = [n for n in wanted if n not in failed]
+    return bool(failed) and all(
+        n in rows and rows[n].state == "running" and rows[n].generation >= generation for n in others
+    )
+
+
+def down(
+    client: ControlClient, fleet: str, wait: bool = True, timeout: float = 30.0
+) -> dict[str, p.ApplyReply | ControlError]:
+    """Send every agent serving `fleet` an empty desired state (left with the router too, for
+    agents away now) and forget the plan."""
+    statuses, registries = client.status(fleet)
+    view = build_view(statuses, registries, time.time())
+    generation = new_generation()
+    serving = sorted(view.agents_serving(fleet))
+    requests = [
+        p.ApplyRequest(
+            fleet=fleet,
+            agent=agent,
+            generation=generation,
+            domain_id=view.domain_ids.get(fleet, 0),
+            bundles=[],
+            sent_at=time.time(),
+        )
+        for agent in serving
+    ]
+    replies = client.send_applies(requests) if requests else {}
+    client.put_desired(with_planned_agents(requests, registries, fleet, generation, view.domain_ids.get(fleet, 0)))
+    client.put_plan(p.PlanRecord(fleet=fleet, generation=generation, robots={}, deployed_at=time.time()))
+    deadline = time.monotonic() + timeout
+    while wait and requests and time.monotonic() < deadline:
+        statuses, _ = client.status(fleet)
+        if not any(status.robots for status in statuses if status.fleet == fleet):
+            break
+        time.sleep(POLL_INTERVAL)
+    return replies

@@ -1,0 +1,60 @@
+"""Finding a fleet's robots and its ROS graph from one status query."""
+
+from __future__ import annotations
+
+import time
+
+from fleet.client.control_client import ControlClient
+from fleet.errors import ControlError, FleetError
+from fleet.plan.view import FleetView, build_view
+
+
+def locate_robot(client: ControlClient, robot: str, fleet: str | None) -> tuple[str, str]:
+    """(fleet, agent) running `robot`, from one status query."""
+    view = build_view(*client.status(fleet), time.time())
+    rows = [row for row in view.find_robot(robot, fleet) if row.state not in ("pending", "offline")]
+    if not rows:
+        raise ControlError(f"no running robot named {robot!r}" + (f" in fleet {fleet}" if fleet else ""))
+    if len(rows) > 1:
+        raise FleetError(f"robot {robot!r} exists in fleets {', '.join(r.fleet for r in rows)}: pick one with --fleet")
+    return rows[0].fleet, rows[0].agent
+
+
+def tool_environment(view: FleetView, fleet: str | None, agent: str | None) -> dict[str, str]:
+    """ROS_DOMAIN_ID, ROS_DISCOVERY_SERVER (the fleet's server; with the zenoh transport the one of
+    `agent`, whose computer this must be) and ROS_SUPER_CLIENT: a plain client would see only the
+    topics it uses itself.  One clear error when the fleet or the server is ambiguous (pure)."""
+    fleets = sorted(view.domain_ids)
+    if fleet is None:
+        if len(fleets) != 1:
+            raise FleetError(
+                "no fleet is deployed"
+                if not fleets
+                else f"several fleets run ({', '.join(fleets)}): pick one with --fleet"
+            )
+        fleet = fleets[0]
+    if fleet not in view.domain_ids:
+        raise ControlError(f"fleet {fleet} is not deployed (see `fleet status`)")
+    servers = {server["agent"]: server["server"] for server in view.discovery.get(fleet, [])}
+    if agent is not None:
+        if agent not in servers:
+            raise FleetError(
+                f"agent {agent} runs no discovery server of fleet {fleet} "
+                f"(those that do: {', '.join(sorted(servers)) or 'none'})"
+            )
+        server = servers[agent]
+    elif len(servers) == 1:
+        server = next(iter(servers.values()))
+    elif not servers:
+        raise ControlError(f"no discovery server of fleet {fleet} answers (is its world's agent online?)")
+    else:
+        raise FleetError(
+            f"fleet {fleet} uses the zenoh transport: every computer has its own DDS; "
+            f"pick the agent on this one with --agent ({', '.join(sorted(servers))})"
+        )
+    return {
+        "ROS_DOMAIN_ID": str(view.domain_ids[fleet]),
+        "ROS_DISCOVERY_SERVER": server,
+        "ROS_SUPER_CLIENT": "TRUE",
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+    }

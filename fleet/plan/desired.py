@@ -1,0 +1,95 @@
+"""What should run where: an Expansion -> one desired state (ApplyRequest) per agent (pure).
+
+Also the registry's record of the plan, and where the fleet's DDS discovery server runs.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+from fleet.dataplane.discovery import DiscoveryPlan, local_servers, plan_discovery
+from fleet.plan.view import FleetView
+from fleet.wire import protocol as p
+
+if TYPE_CHECKING:
+    from fleet.expand.expansion import Expansion
+
+
+def new_generation() -> int:
+    """Time-based: a later deploy (from any machine with a sane clock) has a larger number."""
+    return time.time_ns()
+
+
+def requests_for(
+    expansion: Expansion, generation: int, serving: set[str], discovery: DiscoveryPlan | None = None
+) -> list[p.ApplyRequest]:
+    """A complete desired state for every agent with bundles, and an empty one for agents that
+    run this fleet now but get nothing from this spec (so they stop its robots).  `discovery`
+    says where the fleet's DDS discovery server runs (None: nowhere, nodes stay on their computer)."""
+    by_agent: dict[str, list[p.BundleMessage]] = {}
+    for bundle in expansion.bundles:
+        by_agent.setdefault(bundle.agent, []).append(p.BundleMessage.from_bundle(bundle))
+    for agent in serving:
+        by_agent.setdefault(agent, [])
+    now = time.time()
+    requests = [
+        p.ApplyRequest(
+            fleet=expansion.fleet,
+            agent=agent,
+            generation=generation,
+            domain_id=expansion.domain_id,
+            bundles=bundles,
+            sent_at=now,
+            discovery_server=discovery.server if discovery else None,
+            discovery_host=discovery.host if discovery else None,
+        )
+        for agent, bundles in sorted(by_agent.items())
+    ]
+    if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
+        servers = local_servers(sorted({b.agent for b in expansion.bundles}), expansion.domain_id)
+        for request in requests:
+            request.transport = "zenoh"
+            request.discovery_server = servers.get(request.agent)
+            request.discovery_host = request.agent if request.discovery_server else None
+            request.bridge = expansion.bridge.get(request.agent, p.BridgeRoutes())
+    return requests
+
+
+def _world_agent(expansion: Expansion) -> str | None:
+    return next((bundle.agent for bundle in expansion.bundles if bundle.kind == "world"), None)
+
+
+def with_planned_agents(
+    requests: list[p.ApplyRequest], registries: list[p.RegistryReply], fleet: str, generation: int, domain_id: int
+) -> list[p.ApplyRequest]:
+    """`requests` plus an empty desired state for every agent the last plan placed robots on
+    that gets none now (an agent away right now stops them when it comes back)."""
+    planned = {agent for r in registries if r.fleet == fleet and r.plan for agent in r.plan.robots.values()}
+    missing = sorted(planned - {request.agent for request in requests})
+    return requests + [
+        p.ApplyRequest(
+            fleet=fleet, agent=agent, generation=generation, domain_id=domain_id, bundles=[], sent_at=time.time()
+        )
+        for agent in missing
+    ]
+
+
+def discovery_for(expansion: Expansion, view: FleetView) -> DiscoveryPlan:
+    """Where the fleet's discovery server runs, from the agents online in `view` (pure).  With the
+    zenoh transport: the world agent's own (the one a test probe on its computer joins)."""
+    agents = sorted({bundle.agent for bundle in expansion.bundles})
+    if expansion.transport == "zenoh":
+        host = _world_agent(expansion) or (agents[0] if agents else None)
+        return DiscoveryPlan(host, local_servers(agents, expansion.domain_id).get(host) if host else None)
+    addresses = {agent.name: agent.address for agent in view.agents if agent.online and agent.address}
+    return plan_discovery(_world_agent(expansion), agents, addresses, expansion.domain_id)
+
+
+def plan_record(expansion: Expansion, generation: int) -> p.PlanRecord:
+    return p.PlanRecord(
+        fleet=expansion.fleet,
+        generation=generation,
+        robots={bundle.name: bundle.agent for bundle in expansion.bundles},
+        deployed_at=time.time(),
+    )
