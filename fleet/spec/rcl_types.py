@@ -55,6 +55,11 @@ def rcl_scalar(text: str, quoted: bool = False) -> RclValue:
     return text if number is None else number
 
 
+def is_integer_text(text: str) -> bool:
+    """True when strtoll reads all of `text` (whether or not the integer fits in 64 bits)."""
+    return _STRTOLL.fullmatch(text) is not None
+
+
 def _strtoll(text: str) -> int:
     sign = -1 if text[0] == "-" else 1
     digits = text.lstrip("+-")
