@@ -37,12 +37,17 @@ _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _HEX_FLOAT = re.compile(r"([+-]?)0[xX]((?:[0-9a-fA-F]+\.?[0-9a-fA-F]*|\.[0-9a-fA-F]+)(?:[pP][+-]?[0-9]+)?)")
 _INF_NAN = re.compile(r"[+-]?(?:inf|infinity|nan)", re.IGNORECASE)
 _NONZERO_DIGIT = re.compile(r"[1-9a-fA-F]")
+# The common spelling of a double (0.5, -12.25): read at once, without the tries above.  Short
+# enough that it can neither overflow nor underflow.
+_PLAIN_DOUBLE = re.compile(r"-?[0-9]{1,150}\.[0-9]{1,150}")
 
 
 def rcl_scalar(text: str, quoted: bool = False) -> RclValue:
     """The value rcl gives a scalar written as `text` (quoted: in '...' or "...", or `!!str`)."""
     if quoted:
         return text
+    if _PLAIN_DOUBLE.fullmatch(text):
+        return float(text)
     if text in _TRUE:
         return True
     if text in _FALSE:

@@ -211,6 +211,7 @@ class _Composer:
         self.anchors: dict[str, tuple[Any, int]] = {}  # anchor -> (value, size)
         self.values = 0
         self.parameter_paths: bool | tuple[PathPattern, ...] = True if () in parameter_paths else parameter_paths
+        self.below: dict[tuple[Any, Any], bool | tuple[PathPattern, ...]] = {}  # _below's answers
 
     def compose(self) -> Any:
         if len(self.text) > MAX_TEXT_CHARS:
@@ -286,7 +287,11 @@ class _Composer:
                     rcl = parent_frame.rcl
                     if rcl is not True and rcl:
                         container = parent_frame.container
-                        rcl = _below(rcl, len(container) if type(container) is list else parent_frame.key)
+                        key = len(container) if type(container) is list else parent_frame.key
+                        below = self.below.get((rcl, key))
+                        if below is None:
+                            below = self.below[(rcl, key)] = _below(rcl, key)
+                        rcl = below
                 stack.append(_Frame({} if is_map else [], path, event.anchor, rcl))
                 if event.anchor is not None:
                     open_anchors.add(event.anchor)
