@@ -12,8 +12,6 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
 from fleet.control.protocol import (
     BundleMessage,
     NodeState,
@@ -24,6 +22,7 @@ from fleet.control.protocol import (
     world_summary,
 )
 from fleet.errors import SpecError
+from fleet.expand import yaml_emit
 from fleet.files import write_atomic
 from fleet.spec.yaml_source import safe_load
 
@@ -256,4 +255,6 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
 
 def _dump_params(data: dict) -> str:
     header = f"# rewritten by the fleet agent at {time.strftime('%Y-%m-%d %H:%M:%S')}: live overrides merged\n"
-    return header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+    # fleet's own writer, not yaml.safe_dump: that one writes the string "1e-3" bare, which rcl
+    # reads as a double (and "inf" as infinity).
+    return header + yaml_emit.emit(data)
