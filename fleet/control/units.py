@@ -22,7 +22,6 @@ from fleet.control.protocol import (
     world_summary,
 )
 from fleet.errors import SpecError
-from fleet.expand import yaml_emit
 from fleet.files import write_atomic
 from fleet.spec.yaml_source import safe_load
 
@@ -256,5 +255,8 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
 def _dump_params(data: dict) -> str:
     header = f"# rewritten by the fleet agent at {time.strftime('%Y-%m-%d %H:%M:%S')}: live overrides merged\n"
     # fleet's own writer, not yaml.safe_dump: that one writes the string "1e-3" bare, which rcl
-    # reads as a double (and "inf" as infinity).
+    # reads as a double (and "inf" as infinity).  Imported here: the package fleet.expand brings
+    # the template machinery, which an agent needs only to write this.
+    from fleet.expand import yaml_emit
+
     return header + yaml_emit.emit(data)
