@@ -311,6 +311,8 @@ def test_an_unknown_name_warns_once_with_its_near_miss(navlike):
     text = spec.read_text()
     text = text.replace("PathAlign: {scale: 16.0}", "PathAlign: {scale: 16.0, forward_point_distanse: 0.2}")
     text = text.replace("        max_vel_x: 0.3\n", "        max_vel_x: 0.3\n        max_vel_xx: 0.3\n")
+    typo = "      controller_server: {FollowPath: {PathAlign: {forward_point_distanse: 0.3}}}\n"
+    text = text.replace("      global_costmap/global_costmap:\n", typo + "      global_costmap/global_costmap:\n")
     spec.write_text(text)
     warnings = expand_fleet(load_spec(spec)).warnings
     assert len(warnings) == 2, warnings
@@ -319,4 +321,4 @@ def test_an_unknown_name_warns_once_with_its_near_miss(navlike):
     assert "(did you mean 'FollowPath.max_vel_x'?)" in defaults_typo
     assert "more place" not in defaults_typo  # set once, in defaults.parameters, for three robots
     (robot_typo,) = [w for w in warnings if "forward_point_distanse" in w]
-    assert "(did you mean 'FollowPath.PathAlign.forward_point_distance'?)" in robot_typo
+    assert "(did you mean 'FollowPath.PathAlign.forward_point_distance'?) (and 1 more place)" in robot_typo
