@@ -72,6 +72,8 @@ def _strtoll(text: str) -> int:
         return sign * int(digits[2:], 16)
     if len(digits) > 1 and digits[0] == "0":
         return sign * int(digits[1:], 8)
+    if len(digits) > 20:  # beyond int64 however it ends, and beyond what Python's int() may read
+        return sign * (INT64_MAX + 1) * 2
     return sign * int(digits)
 
 

@@ -39,7 +39,7 @@ from typing import Any
 import yaml
 
 from fleet.errors import Location, SpecError
-from fleet.spec.rcl_types import INT64_MAX, INT64_MIN, is_integer_text, rcl_scalar
+from fleet.spec.rcl_types import is_integer_text, rcl_scalar
 
 # libyaml's parser when PyYAML was built with it: about ten times faster on big specs.
 FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -405,7 +405,6 @@ class _Composer:
     def _rcl_scalar(self, event: Any) -> Any:
         """A parameter value, typed as rcl types it (see the module's doc)."""
         tag, text = event.tag, event.value
-        where = self._location(event.start_mark)
         if tag == _STR or event.style in _QUOTED:
             if tag not in (None, _STR, "!"):
                 raise self._rcl_tag_error(event)
@@ -413,27 +412,31 @@ class _Composer:
         if tag not in (None, "!"):
             raise self._rcl_tag_error(event)
         if not text and not event.style:
-            raise YamlError('no value: rcl refuses an empty parameter value (write "" for an empty string)', where)
+            raise YamlError(
+                'no value: rcl refuses an empty parameter value (write "" for an empty string)',
+                self._location(event.start_mark),
+            )
         if text in _RCL_NULLS and not event.style:
             raise YamlError(
                 f'{text} is not a ROS parameter value: rcl would read the string "{text}" '
                 "(quote it if that is meant, or remove the key)",
-                where,
+                self._location(event.start_mark),
             )
-        if len(text) > MAX_NUMBER_CHARS and text.lstrip("+-")[:1].isdigit():
-            raise YamlError(f"number of {len(text)} characters: too large (integers are 64-bit, floats doubles)", where)
         value = rcl_scalar(text)
-        if isinstance(value, float):
-            if not math.isfinite(value):
-                raise YamlError(f"{text}: NaN and infinity are not accepted, give a finite number", where)
-            if is_integer_text(text):
-                raise YamlError(
-                    f"integer {text} is outside the 64-bit range ROS integers have "
-                    f"(rcl would read a double: write {text}.0 if one is meant)",
-                    where,
-                )
-        elif isinstance(value, int) and not isinstance(value, bool):
-            assert INT64_MIN <= value <= INT64_MAX
+        if type(value) is str or type(value) is bool:
+            return value
+        problem = None
+        if len(text) > MAX_NUMBER_CHARS:
+            problem = f"number of {len(text)} characters: too large (integers are 64-bit, floats doubles)"
+        elif isinstance(value, float) and not math.isfinite(value):
+            problem = f"{text}: NaN and infinity are not accepted, give a finite number"
+        elif isinstance(value, float) and is_integer_text(text):
+            problem = (
+                f"integer {text} is outside the 64-bit range ROS integers have "
+                f"(rcl would read a double: write {text}.0 if one is meant)"
+            )
+        if problem is not None:
+            raise YamlError(problem, self._location(event.start_mark))
         return value
 
     def _rcl_tag_error(self, event: Any) -> YamlError:

@@ -92,7 +92,8 @@ def test_spec_parameters_are_typed_as_rcl_types_them_and_nothing_else_is():
 
 def test_rcl_typing_of_values_rcl_reads_differently_from_yaml_1_1():
     data, _ = load_yaml(
-        textwrap.dedent("""\
+        textwrap.dedent(
+            """\
             node:
               a: 1e-3
               b: y
@@ -104,7 +105,12 @@ def test_rcl_typing_of_values_rcl_reads_differently_from_yaml_1_1():
               h: 0x1f
               i: n
               j: '1_000'
-            """),
+              k: 2024 was a year of robots, """
+            + "and more " * 20
+            + """
+              l: 00000000000000000000000000000000000000000000000000000000000000000000000000000000000001
+            """
+        ),
         "defaults.yaml",
         ((None,),),
     )
@@ -119,6 +125,8 @@ def test_rcl_typing_of_values_rcl_reads_differently_from_yaml_1_1():
         "h": ("int", 31),
         "i": ("bool", False),
         "j": ("str", "1_000"),
+        "k": ("str", "2024 was a year of robots, " + "and more " * 19 + "and more"),
+        "l": ("int", 1),  # octal, to strtoll
     }
 
 
