@@ -194,6 +194,12 @@ def _plan_robot(
     node_names = {node.name for node in shape.nodes}
     layers = _shared_layers(spec, templates, template, frozenset(node_names), shared_layers).copy()
     started = {node.fqn for node in shape.nodes}
+    if layers.hosted and params_file_reference(robot.name) not in rendered.text:
+        raise TemplateError(
+            f"parameter defaults for hosted nodes ({', '.join(layers.hosted)}), but no node of template "
+            f"{template!r} is given the robot's parameter file ({{{{ params_file }}}}): no process would read them",
+            Location(rendered.template_file),
+        )
     for hosted in layers.hosted:
         fqn = hosted_fqn(namespace, hosted)
         if fqn in started or (problem := node_name_problem(fqn)):

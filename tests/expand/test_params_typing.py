@@ -295,6 +295,14 @@ def test_a_hosted_node_may_not_take_the_name_of_a_started_one(navlike, capsys):
     assert "hosted node planner_server/x: the template's launch file starts a node /robot1/planner_server/x" in line
 
 
+def test_hosted_nodes_need_a_process_given_the_parameter_file(navlike, capsys):
+    launch = navlike / "templates" / "navlike.launch.yaml.j2"
+    launch.write_text(launch.read_text().replace(", param: [{from: {{ params_file }}}]", ""))
+    line = refused(capsys, navlike / "fleet.yaml")
+    assert "navlike.launch.yaml.j2: parameter defaults for hosted nodes" in line
+    assert "no process would read them" in line
+
+
 # --- --set on a group ---------------------------------------------------------------------------
 
 
