@@ -134,6 +134,20 @@ def ros_name_problem(name: object) -> str | None:
     return None
 
 
+def node_key_problem(name: object) -> str | None:
+    """Why `name` cannot name a node in a robot's parameters, or None: a node's name
+    (`controller`), or the name relative to the robot's namespace of a node that runs inside
+    another node's process (`local_costmap/local_costmap`), each token a ROS name."""
+    if not isinstance(name, str) or "/" not in name:
+        return ros_name_problem(name)
+    if name.startswith("/"):
+        return f"{name!r} must be relative to the robot's namespace (no leading '/')"
+    for token in name.split("/"):
+        if problem := ros_name_problem(token):
+            return f"{name!r}: token {problem}"
+    return None
+
+
 def namespace_problem(namespace: object) -> str | None:
     """Why `namespace` is not a valid absolute ROS namespace like /site_a/robot1, or None."""
     if not isinstance(namespace, str):

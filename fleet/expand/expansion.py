@@ -29,7 +29,7 @@ from fleet.rules import (
     node_name_problem,
 )
 from fleet.spec.model import FleetSpec, Model, Robot
-from fleet.spec.params import unflatten
+from fleet.spec.params import flatten, unflatten
 from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input, safe_load
 from fleet.wire.limits import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
 from fleet.world.description import world_spec
@@ -126,14 +126,16 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     ]
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
-    warnings: list[str] = []
+    # One warning per parameter name a template does not know, however many robots set it.
+    unknown: dict[tuple[str, str, str], list[str]] = {}
     checked: set[int] = set()  # shared layers checked with a robot: the next ones check only what they changed
     for plan in robots:
         layers = plan.parameters
         nodes = layers.changed if id(layers.origin) in checked else None
         check_type_stable(layers, plan.name, nodes)
         check_names_disjoint(layers, plan.name, nodes)
-        warnings += layers.unknown_to_template(layers.template_defaults, nodes)
+        for (node, name), warning in layers.unknown_to_template(nodes).items():
+            unknown.setdefault((plan.template, node, name), []).append(warning)
         checked.add(id(layers.origin))
     sections: dict[DocPath, str] = {}
     bundles = [_robot_bundle(spec, plan, sections) for plan in robots]
@@ -141,7 +143,14 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
         bundles.append(_world_bundle(spec, templates))
     bridge = _bridge_routes(spec, bundles, robots)
     _check_deliverable(spec, bundles, bridge)
-    return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=sorted(set(warnings)))
+    warnings = sorted(_once(found) for found in unknown.values())
+    return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=warnings)
+
+
+def _once(warnings: list[str]) -> str:
+    """The first of the warnings about one name, saying how many other places set it."""
+    others = len(set(warnings)) - 1
+    return warnings[0] + (f" (and {others} more place{'s' if others > 1 else ''})" if others else "")
 
 
 def _plan_robot(
@@ -196,11 +205,23 @@ def _plan_robot(
             raise SpecError(f"robot {robot.name}: {problem}", _spec_location(spec, at))
     node_names = {node.name for node in shape.nodes}
     layers = _shared_layers(spec, templates, template, frozenset(node_names), shared_layers).copy()
+    started = {node.fqn for node in shape.nodes}
+    if layers.hosted and params_file_reference(robot.name) not in rendered.text:
+        raise TemplateError(
+            f"parameter defaults for hosted nodes ({', '.join(layers.hosted)}), but no node of template "
+            f"{template!r} is given the robot's parameter file ({{{{ params_file }}}}): no process would read them",
+            Location(rendered.template_file),
+        )
+    for hosted in layers.hosted:
+        fqn = hosted_fqn(namespace, hosted)
+        if fqn in started or (problem := node_name_problem(fqn)):
+            at = ("robots", index, "namespace") if robot.namespace else ("robots", index, "name")
+            why = f"the template's launch file starts a node {fqn} too" if fqn in started else problem
+            raise SpecError(f"robot {robot.name}: hosted node {hosted}: {why}", _spec_location(spec, at))
     for node, values in robot.parameters.items():
-        if node not in node_names:
+        if node not in node_names and node not in layers.hosted:
             raise SpecError(
-                f"robot {robot.name}: template {template!r} starts no node {node!r} "
-                f"(nodes: {', '.join(sorted(node_names))})",
+                f"robot {robot.name}: {_no_node(template, node, node_names, layers.hosted)}",
                 _spec_location(spec, ("robots", index, "parameters", node)),
             )
         layers.add(node, values, "robot", _spec_place(spec, "robots", index, "parameters", node))
@@ -230,8 +251,9 @@ def _shared_layers(
         return cache[key]
     defaults, defaults_file, defaults_source = _template_defaults(templates, template)
     layers = ParameterLayers()
+    layers.hosted = tuple(node for node in defaults if "/" in node)
     for node, values in defaults.items():
-        if node not in node_names:
+        if node not in node_names and node not in layers.hosted:
             raise TemplateError(
                 f"defaults for node {node!r}, which template {template!r} does not start "
                 f"(nodes: {', '.join(sorted(node_names))})",
@@ -240,11 +262,26 @@ def _shared_layers(
         assert defaults_source is not None  # there are defaults only when read from a file
         layers.add(node, values, "template", _file_place(defaults_source, node))
     for node, values in spec.defaults.parameters.items():
-        if node in node_names:
+        if node in node_names or node in layers.hosted:
             layers.add(node, values, "defaults", _spec_place(spec, "defaults", "parameters", node))
-    layers.template_defaults = defaults
+    layers.template_names = {node: frozenset(flatten(values)) for node, values in defaults.items()}
     cache[key] = layers
     return layers
+
+
+def hosted_fqn(namespace: str, hosted: str) -> str:
+    """The full name of a node hosted inside another's process, from its name relative to the
+    robot's namespace: /robot1 and local_costmap/local_costmap -> /robot1/local_costmap/local_costmap."""
+    return f"{namespace.rstrip('/')}/{hosted}"
+
+
+def _no_node(template: str, node: str, started: set[str], hosted: tuple[str, ...]) -> str:
+    if "/" in node:
+        return (
+            f"template {template!r} hosts no node {node!r} (hosted nodes, given in its parameter defaults: "
+            f"{', '.join(hosted) or 'none'})"
+        )
+    return f"template {template!r} starts no node {node!r} (nodes: {', '.join(sorted(started))})"
 
 
 def _spec_place(spec: FleetSpec, *prefix: Any) -> Callable[[DocPath], str]:
@@ -279,7 +316,8 @@ def _template_defaults(
     path = templates.defaults_file(template)
     if path is None:
         return {}, None, None
-    data, source = load_yaml(read_input(path, "template parameter defaults"), path)
+    # Its top-level keys are nodes; everything below is a node's parameters, typed as rcl types them.
+    data, source = load_yaml(read_input(path, "template parameter defaults"), path, ((None,),))
     if data is None:
         return {}, path, source
     if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
@@ -297,14 +335,26 @@ def _apply_overrides(spec: FleetSpec, robots: list[RobotPlan], overrides: list[O
         plan = by_name.get(override.robot)
         if plan is None:
             raise SpecError(f"no robot {override.robot!r} in {spec.source_file} (robots: {', '.join(by_name)})", where)
-        nodes = sorted({node.name for node in plan.outline.nodes})
+        nodes = sorted({node.name for node in plan.outline.nodes}) + list(plan.parameters.hosted)
         if override.node not in nodes:
             raise SpecError(f"robot {plan.name} has no node {override.node!r} (nodes: {', '.join(nodes)})", where)
+        group = plan.parameters.group_of(override.node, override.parameter)
+        if group:
+            # Written as one value, the group would vanish from the file: refused, whatever the
+            # value, rather than left to the check of every layer, which says less.
+            count = f"{len(group)} parameter{'s' * (len(group) > 1)}"
+            raise SpecError(
+                f"{override.node}.{override.parameter} is a parameter in the --set layer and the namespace of "
+                f"{override.node}.{group[0]} (a group of {count}): set them one by one "
+                f"(--set {plan.name}.{override.node}.{group[0]}=...)",
+                where,
+            )
         plan.parameters.set(override.node, override.parameter, override.value, "--set", f"--set {override.text}")
 
 
 def _check_default_nodes(spec: FleetSpec, robots: list[RobotPlan]) -> None:
     all_nodes = {node.name for plan in robots for node in plan.outline.nodes}
+    all_nodes |= {hosted for plan in robots for hosted in plan.parameters.hosted}
     for node in spec.defaults.parameters:
         if node not in all_nodes:
             raise SpecError(
@@ -355,19 +405,28 @@ def params_file_text(spec: FleetSpec, plan: RobotPlan, sections: dict[DocPath, s
         if node.fqn in done:
             continue
         done.add(node.fqn)
-        key = (id(layers.origin), node.name) if layers.same_as_origin(node.name) else None
-        body = sections.get(key) if key is not None else None
-        if body is None:
-            body = yaml_emit.emit({"ros__parameters": unflatten(layers.effective_of(node.name))}, indent=1)
-            if key is not None:
-                sections[key] = body
-        text.append(f"{yaml_emit.mapping_key(node.fqn)}:\n{body}")
+        text.append(f"{yaml_emit.mapping_key(node.fqn)}:\n{_section_body(layers, node.name, sections)}")
+    for hosted in layers.hosted:
+        # Read by the process that hosts the node: launch gives --params-file to a whole process,
+        # each of whose nodes takes the section of its own full name.
+        fqn = hosted_fqn(plan.namespace, hosted)
+        text.append(f"{yaml_emit.mapping_key(fqn)}:\n{_section_body(layers, hosted, sections)}")
     header = (
         f"# Parameters of robot {plan.name} in fleet {spec.fleet}, generated by fleet.\n"
         f"# Layers, lowest first: template {plan.template} < spec defaults < robot < --set.\n"
         f"# See where a value comes from: fleet render SPEC --explain {plan.name}.NODE.PARAMETER\n"
     )
     return header + "".join(text)
+
+
+def _section_body(layers: ParameterLayers, node: str, sections: dict[DocPath, str]) -> str:
+    key = (id(layers.origin), node) if layers.same_as_origin(node) else None
+    body = sections.get(key) if key is not None else None
+    if body is None:
+        body = yaml_emit.emit({"ros__parameters": unflatten(layers.effective_of(node))}, indent=1)
+        if key is not None:
+            sections[key] = body
+    return body
 
 
 def world_description(spec: FleetSpec) -> dict[str, Any]:

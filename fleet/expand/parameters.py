@@ -15,9 +15,9 @@ from functools import partial
 from typing import Any
 
 from fleet.errors import Location, SpecError
-from fleet.rules import ros_name_problem
-from fleet.spec.params import coerce_like, flatten, namespace_clash, normalize, value_problem
-from fleet.spec.yaml_source import DocPath, parse_scalar
+from fleet.rules import node_key_problem, ros_name_problem
+from fleet.spec.params import coerce_like, flatten, namespace_clash, value_problem
+from fleet.spec.yaml_source import DocPath, parse_parameter_value
 
 LAYERS = ("template", "defaults", "robot", "--set")
 
@@ -53,18 +53,18 @@ def parse_override(text: str) -> Override:
     if not equals or len(parts) < 3 or not all(parts):
         raise SpecError("expected ROBOT.NODE.PARAMETER=VALUE, e.g. robot1.controller.max_speed=0.8", where)
     try:
-        value = parse_scalar(raw)
+        value = parse_parameter_value(raw)  # as rcl reads it in a parameter file: 1e-3 is a double
     except ValueError as error:
         raise SpecError(str(error), where) from None
     if problem := value_problem(value):
         raise SpecError(problem, where)
     # The names a spec's parameters must have (fleet.spec.load.check_parameters), and its values.
-    if problem := ros_name_problem(parts[1]):
+    if problem := node_key_problem(parts[1]):
         raise SpecError(f"node name {problem}", where)
     for token in parts[2].split("."):
         if problem := ros_name_problem(token):
             raise SpecError(f"parameter name {parts[2]}: {problem}", where)
-    return Override(robot=parts[0], node=parts[1], parameter=parts[2], value=normalize(value), text=text)
+    return Override(robot=parts[0], node=parts[1], parameter=parts[2], value=value, text=text)
 
 
 class ParameterLayers:
@@ -72,7 +72,11 @@ class ParameterLayers:
 
     def __init__(self) -> None:
         self.history: dict[tuple[str, str], list[Setting]] = {}
-        self.template_defaults: dict[str, dict[str, Any]] = {}  # node -> parameters, for typo warnings
+        # node -> dotted parameter names of the template's defaults, for typo warnings
+        self.template_names: dict[str, frozenset[str]] = {}
+        # Nodes the template's processes host besides the nodes its launch file starts, by their
+        # names relative to the robot's namespace (local_costmap/local_costmap), in file order.
+        self.hosted: tuple[str, ...] = ()
         # A copy knows what it was copied from and which nodes it changed since: the parameters of
         # the other nodes are its origin's, so their checks and files are made once, not per robot.
         self.origin: ParameterLayers | None = None
@@ -81,7 +85,8 @@ class ParameterLayers:
     def copy(self) -> ParameterLayers:
         other = ParameterLayers()
         other.history = dict(self.history)  # the lists are shared: set() replaces a list, never appends to one
-        other.template_defaults = self.template_defaults
+        other.template_names = self.template_names
+        other.hosted = self.hosted
         other.origin = self
         return other
 
@@ -99,7 +104,7 @@ class ParameterLayers:
         self.changed.add(node)
         settings = self.history.get((node, name), [])
         reference = settings[0].value if settings else None
-        self.history[(node, name)] = [*settings, Setting(normalize(coerce_like(value, reference)), layer, source)]
+        self.history[(node, name)] = [*settings, Setting(coerce_like(value, reference), layer, source)]
 
     def effective(self) -> dict[str, dict[str, Any]]:
         """node -> dotted parameter name -> winning value."""
@@ -121,15 +126,21 @@ class ParameterLayers:
             return self.history.items()
         return ((key, settings) for key, settings in self.history.items() if key[0] in nodes)
 
-    def unknown_to_template(self, known: dict[str, dict[str, Any]], nodes: Collection[str] | None = None) -> list[str]:
-        """Warnings for parameters the template's defaults do not know (likely typos)."""
-        warnings = []
+    def group_of(self, node: str, name: str) -> list[str]:
+        """The parameters of `node` in the group `name` (FollowPath: FollowPath.plugin, ...)."""
+        prefix = name + "."
+        return [of_name for (of, of_name) in self.history if of == node and of_name.startswith(prefix)]
+
+    def unknown_to_template(self, nodes: Collection[str] | None = None) -> dict[tuple[str, str], str]:
+        """(node, dotted name) -> a warning, for each parameter the template's defaults of a node
+        do not have (a likely typo), with the closest name they have."""
+        warnings = {}
         for (node, name), settings in self.of_nodes(nodes):
-            declared = known.get(node, {})
+            declared = self.template_names.get(node)
             if declared and name not in declared:
-                hint = difflib.get_close_matches(name, list(declared), n=1)
+                hint = difflib.get_close_matches(name, sorted(declared), n=1)
                 guess = f" (did you mean {hint[0]!r}?)" if hint else ""
-                warnings.append(
+                warnings[(node, name)] = (
                     f"{settings[-1].source}: {node}.{name} is not a parameter of the template's {node} defaults{guess}"
                 )
         return warnings

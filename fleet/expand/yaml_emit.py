@@ -3,8 +3,9 @@ scalars in flow style, lists of mappings as block sequences.
 
 A small exact emitter rather than yaml.dump: these files hold only validated names and plain
 values (bool, int, float, string, lists), and a 1,000-robot fleet writes thousands of them.
-Strings are JSON-quoted (valid YAML double-quoted scalars); floats always carry a '.' or an
-exponent with a '.', so every YAML reader (rcl, PyYAML) reads them as floats.
+Strings are JSON-quoted (valid YAML double-quoted scalars) unless both rcl and PyYAML read them
+bare as the same string; floats always carry a '.' or an exponent with a '.', so every YAML
+reader (rcl, PyYAML) reads them as floats.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import json
 import math
 import re
 from typing import Any
+
+from fleet.spec.rcl_types import rcl_scalar
 
 # Strings that read back as the same string when written bare: names, namespaces, file names.
 _PLAIN = re.compile(r"[A-Za-z_/][A-Za-z0-9_./-]*")
@@ -36,7 +39,8 @@ def scalar(value: Any) -> str:
             text = f"{mantissa}.0e{exponent}"
         return text
     if isinstance(value, str):
-        if _PLAIN.fullmatch(value) and value.lower() not in _YAML_WORDS:
+        # rcl reads `inf`, `nan` and `Infinity` bare as doubles: those are quoted too.
+        if _PLAIN.fullmatch(value) and value.lower() not in _YAML_WORDS and type(rcl_scalar(value)) is str:
             return value
         return json.dumps(value, ensure_ascii=True)
     if value is None:

@@ -12,8 +12,6 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
 from fleet.errors import SpecError
 from fleet.files import write_atomic
 from fleet.rules import WORLD_STATUS_FILE, unit_log_dir
@@ -256,4 +254,9 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
 
 def _dump_params(data: dict) -> str:
     header = f"# rewritten by the fleet agent at {time.strftime('%Y-%m-%d %H:%M:%S')}: live overrides merged\n"
-    return header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+    # fleet's own writer, not yaml.safe_dump: that one writes the string "1e-3" bare, which rcl
+    # reads as a double (and "inf" as infinity).  Imported here: the package fleet.expand brings
+    # the template machinery, which an agent needs only to write this.
+    from fleet.expand import yaml_emit
+
+    return header + yaml_emit.emit(data)

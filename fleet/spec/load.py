@@ -16,12 +16,16 @@ from fleet.rules import (
     WORLD_TEMPLATE,
     key_name_problem,
     namespace_problem,
+    node_key_problem,
     ros_name_problem,
     template_name_problem,
 )
 from fleet.spec.model import FleetSpec
 from fleet.spec.params import ParameterNameClash, flatten, namespace_clash, value_problem
-from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input
+from fleet.spec.yaml_source import DocPath, PathPattern, SourceMap, load_yaml, read_input
+
+# The mappings of a spec that hold a node's parameters: their values are typed as rcl types them.
+PARAMETER_PATHS: tuple[PathPattern, ...] = (("robots", None, "parameters", None), ("defaults", "parameters", None))
 
 
 def load_spec(path: str | Path) -> FleetSpec:
@@ -31,7 +35,7 @@ def load_spec(path: str | Path) -> FleetSpec:
 
 
 def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
-    data, source = load_yaml(text, file)
+    data, source = load_yaml(text, file, PARAMETER_PATHS)
     if not isinstance(data, dict):
         raise SpecError("a fleet spec is a mapping with at least 'fleet' and 'robots'", Location(file, 1, 1))
     try:
@@ -148,7 +152,7 @@ def check_parameters(parameters: dict[str, dict[str, Any]], path: DocPath, sourc
     """Node names are ROS names; every (nested) parameter name is one, named once; every value is
     one ROS can hold."""
     for node, values in parameters.items():
-        if problem := ros_name_problem(node):
+        if problem := node_key_problem(node):
             raise SpecError(f"node name {problem}", source.locate((*path, node), key=True))
         try:
             flat = flatten(values)

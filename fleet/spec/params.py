@@ -1,6 +1,7 @@
 """ROS parameter values: what ROS can hold, and flattening of nested parameter maps.
 
-ROS parameters are bool, int, float, str, or homogeneous non-empty lists of one of those.
+ROS parameters are bool, int, float, str, or homogeneous non-empty lists of one of those (values
+are typed as rcl types them when read: fleet.spec.rcl_types, fleet.spec.yaml_source).
 A nested mapping inside a node's parameters is a parameter namespace (`pid: {kp: 1}` is the
 parameter `pid.kp`), exactly as rcl reads parameter files.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+from fleet.spec.rcl_types import sequence_problem
 from fleet.spec.yaml_source import DocPath
 
 SCALAR_TYPES = (bool, int, float, str)
@@ -22,8 +24,6 @@ def value_problem(value: Any) -> str | None:
     if isinstance(value, SCALAR_TYPES):
         return None
     if isinstance(value, list):
-        if not value:
-            return "an empty list has no type; ROS cannot hold it"
         for item in value:
             if isinstance(item, list):
                 return "nested lists are not ROS parameter values"
@@ -31,30 +31,11 @@ def value_problem(value: Any) -> str | None:
                 return "mappings inside lists are not ROS parameter values"
             if item is None:
                 return "null inside a list is not a ROS parameter value"
-        kinds = {_kind(item) for item in value}
-        if kinds == {"int", "float"}:
-            return None  # [0, 2.5] is a float list with an int written the short way; see normalize()
-        if len(kinds) > 1:
-            return f"mixed-type list ({', '.join(sorted(kinds))}); ROS lists hold one type"
+        if problem := sequence_problem(value):
+            # rcl refuses [1, 2.5] ("Sequence should be of same type"): no int is taken for a double.
+            return f"mixed-type list: {problem} (write 1.0 for a double)" if value else problem
         return None
     return f"{type(value).__name__} is not a ROS parameter value"
-
-
-def normalize(value: Any) -> Any:
-    """The value as written to a parameter file: int/float lists become float lists."""
-    if isinstance(value, list) and any(isinstance(v, float) for v in value):
-        return [float(v) for v in value]
-    return value
-
-
-def _kind(value: Any) -> str:
-    if isinstance(value, bool):
-        return "bool"
-    if isinstance(value, int):
-        return "int"
-    if isinstance(value, float):
-        return "float"
-    return "string"
 
 
 class ParameterNameClash(ValueError):

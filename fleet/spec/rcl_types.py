@@ -37,12 +37,17 @@ _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _HEX_FLOAT = re.compile(r"([+-]?)0[xX]((?:[0-9a-fA-F]+\.?[0-9a-fA-F]*|\.[0-9a-fA-F]+)(?:[pP][+-]?[0-9]+)?)")
 _INF_NAN = re.compile(r"[+-]?(?:inf|infinity|nan)", re.IGNORECASE)
 _NONZERO_DIGIT = re.compile(r"[1-9a-fA-F]")
+# The common spelling of a double (0.5, -12.25): read at once, without the tries above.  Short
+# enough that it can neither overflow nor underflow.
+_PLAIN_DOUBLE = re.compile(r"-?[0-9]{1,150}\.[0-9]{1,150}")
 
 
 def rcl_scalar(text: str, quoted: bool = False) -> RclValue:
     """The value rcl gives a scalar written as `text` (quoted: in '...' or "...", or `!!str`)."""
     if quoted:
         return text
+    if _PLAIN_DOUBLE.fullmatch(text):
+        return float(text)
     if text in _TRUE:
         return True
     if text in _FALSE:
@@ -55,6 +60,11 @@ def rcl_scalar(text: str, quoted: bool = False) -> RclValue:
     return text if number is None else number
 
 
+def is_integer_text(text: str) -> bool:
+    """True when strtoll reads all of `text` (whether or not the integer fits in 64 bits)."""
+    return _STRTOLL.fullmatch(text) is not None
+
+
 def _strtoll(text: str) -> int:
     sign = -1 if text[0] == "-" else 1
     digits = text.lstrip("+-")
@@ -62,6 +72,8 @@ def _strtoll(text: str) -> int:
         return sign * int(digits[2:], 16)
     if len(digits) > 1 and digits[0] == "0":
         return sign * int(digits[1:], 8)
+    if len(digits) > 20:  # beyond int64 however it ends, and beyond what Python's int() may read
+        return sign * (INT64_MAX + 1) * 2
     return sign * int(digits)
 
 

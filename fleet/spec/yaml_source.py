@@ -18,6 +18,15 @@ What plain yaml.safe_load lets through and this refuses, each with its own messa
   refusing a bomb costs no more than reading it;
 - texts longer than MAX_TEXT_CHARS.
 Timestamps (`2024-05-01`) stay strings, as ROS's own parameter parser reads them.
+
+Parameter values are read as rcl reads them, not by YAML 1.1's rules (fleet.spec.rcl_types):
+a caller names the mappings that hold a node's parameters (`parameter_paths`), and every scalar
+below them is typed from its source text by rcl_scalar (`1e-3` a double, `y` a bool, `1_000` a
+string), quoted ones and `!!str` as strings; keys (parameter names) are read as everywhere else.
+Where rcl would read a value other than as its writer most likely meant, it is refused rather
+than guessed: an empty value (rcl refuses it too), a plain `null` (a string to rcl), NaN and
+infinity, an integer beyond 64 bits (a double to rcl), and tags other than `!!str` (which rcl
+ignores).
 """
 
 from __future__ import annotations
@@ -31,6 +40,7 @@ from typing import Any
 import yaml
 
 from fleet.errors import Location, SpecError
+from fleet.spec.rcl_types import is_integer_text, rcl_scalar
 
 # libyaml's parser when PyYAML was built with it: about ten times faster on big specs.
 FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -38,6 +48,8 @@ FAST_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
 # A place in a loaded document: the keys and list indexes leading to it, ("robots", 0, "name").
 DocPath = tuple[Any, ...]
+# A path of a document with None for "any key or index": ("robots", None, "parameters", None).
+PathPattern = tuple[Any, ...]
 
 MAX_TEXT_CHARS = 16 * 1024 * 1024
 MAX_DEPTH = 64  # nested collections; a fleet spec needs about ten
@@ -54,6 +66,8 @@ _TYPED_FIRST = frozenset(FAST_LOADER.yaml_implicit_resolvers)
 assert None not in _TYPED_FIRST
 _CONSTRUCTOR = yaml.constructor.SafeConstructor()
 _NO_KEY = object()
+_RCL_NULLS = frozenset({"null", "Null", "NULL", "~"})
+_QUOTED = ("'", '"')
 
 
 class YamlError(SpecError):
@@ -78,12 +92,13 @@ class SourceMap:
     # The text the positions are read from when first asked for: places are shown only with
     # errors, warnings and --explain, so a document that is fine is read once, without them.
     text: str | None = field(default=None, repr=False)
+    parameter_paths: tuple[PathPattern, ...] = ()  # read as load_yaml was told to read it
 
     def locate(self, path: DocPath, key: bool = False) -> Location:
         """The location of `path`, or of its closest ancestor that has one."""
         if self.text is not None:
             text, self.text = self.text, None
-            _Composer(text, self).compose()
+            _Composer(text, self, parameter_paths=self.parameter_paths).compose()
         table = self.key_positions if key else self.positions
         probe = tuple(path)
         while True:
@@ -123,11 +138,13 @@ def read_input(path: Path, what: str) -> str:
         ) from None
 
 
-def load_yaml(text: str, file: str | Path) -> tuple[Any, SourceMap]:
-    """Parse YAML text into plain data plus its SourceMap; every problem is a SpecError."""
+def load_yaml(text: str, file: str | Path, parameter_paths: tuple[PathPattern, ...] = ()) -> tuple[Any, SourceMap]:
+    """Parse YAML text into plain data plus its SourceMap; every problem is a SpecError.
+    Everything below a mapping at one of `parameter_paths` is a parameter value, typed as rcl types it."""
     source = SourceMap(str(file))
-    data = _Composer(text, source, record=False).compose()
+    data = _Composer(text, source, record=False, parameter_paths=parameter_paths).compose()
     source.text = text
+    source.parameter_paths = parameter_paths
     return data, source
 
 
@@ -147,26 +164,59 @@ def parse_scalar(text: str) -> Any:
         raise ValueError(f"not a YAML value: {error.message}") from None
 
 
+def parse_parameter_value(text: str) -> Any:
+    """A command-line parameter value read as rcl reads a value in a parameter file (`1e-3` a
+    double, `[1, 2]` a list); raises ValueError saying why it is not one."""
+    if not text.strip():
+        return ""
+    try:
+        return _Composer(text, SourceMap("<value>"), record=False, parameter_paths=((),)).compose()
+    except SpecError as error:
+        raise ValueError(f"not a parameter value: {error.message}") from None
+
+
 class _Frame:
     """A collection being built."""
 
-    __slots__ = ("anchor", "container", "key", "path", "size")
+    __slots__ = ("anchor", "container", "key", "path", "rcl", "size")
 
-    def __init__(self, container: dict[Any, Any] | list[Any], path: DocPath | None, anchor: str | None):
+    def __init__(
+        self,
+        container: dict[Any, Any] | list[Any],
+        path: DocPath | None,
+        anchor: str | None,
+        rcl: bool | tuple[PathPattern, ...],
+    ):
         self.container = container
         self.path = path
         self.anchor = anchor
         self.key: Any = _NO_KEY  # a mapping's key waiting for its value
         self.size = 1  # values in it, itself included, aliases expanded
+        # True: its values are parameter values; else the rest of the parameter paths that may
+        # lead below it.
+        self.rcl = rcl
+
+
+def _below(rcl: bool | tuple[PathPattern, ...], key: Any) -> bool | tuple[PathPattern, ...]:
+    """The `rcl` of a collection at `key` in one whose `rcl` is given."""
+    if rcl is True or not rcl:
+        return rcl
+    assert not isinstance(rcl, bool)
+    rest = tuple(pattern[1:] for pattern in rcl if pattern[0] is None or pattern[0] == key)
+    return True if () in rest else rest
 
 
 class _Composer:
-    def __init__(self, text: str, source: SourceMap, record: bool = True):
+    def __init__(
+        self, text: str, source: SourceMap, record: bool = True, parameter_paths: tuple[PathPattern, ...] = ()
+    ):
         self.text = text
         self.source = source
         self.record = record  # fill source.positions and key_positions
         self.anchors: dict[str, tuple[Any, int]] = {}  # anchor -> (value, size)
         self.values = 0
+        self.parameter_paths: bool | tuple[PathPattern, ...] = True if () in parameter_paths else parameter_paths
+        self.below: dict[tuple[Any, Any], bool | tuple[PathPattern, ...]] = {}  # _below's answers
 
     def compose(self) -> Any:
         if len(self.text) > MAX_TEXT_CHARS:
@@ -210,7 +260,11 @@ class _Composer:
                 if self.values > MAX_VALUES:
                     raise self._too_many(event, alias=False)
                 value, size = event.value, 1
-                if event.tag is not None or (event.implicit[0] and (not value or value[0] in _TYPED_FIRST)):
+                rcl = stack[-1].rcl if stack else self.parameter_paths
+                # Parameter values are typed as rcl types them; keys (names) as everything else.
+                if rcl is True and (not stack or type(stack[-1].container) is list or stack[-1].key is not _NO_KEY):
+                    value = self._rcl_scalar(event)
+                elif event.tag is not None or (event.implicit[0] and (not value or value[0] in _TYPED_FIRST)):
                     value = self._scalar(event, loader)  # anything but a plain string (see _scalar)
                 if event.anchor is not None:
                     self.anchors[event.anchor] = (value, size)
@@ -231,7 +285,19 @@ class _Composer:
                 if self.values > MAX_VALUES:
                     raise self._too_many(event, alias=False)
                 path = self._record(stack, event) if record else None
-                stack.append(_Frame({} if is_map else [], path, event.anchor))
+                if not stack:
+                    rcl = self.parameter_paths
+                else:
+                    parent_frame = stack[-1]
+                    rcl = parent_frame.rcl
+                    if rcl is not True and rcl:
+                        container = parent_frame.container
+                        key = len(container) if type(container) is list else parent_frame.key
+                        below = self.below.get((rcl, key))
+                        if below is None:
+                            below = self.below[(rcl, key)] = _below(rcl, key)
+                        rcl = below
+                stack.append(_Frame({} if is_map else [], path, event.anchor, rcl))
                 if event.anchor is not None:
                     open_anchors.add(event.anchor)
                 continue
@@ -340,6 +406,51 @@ class _Composer:
             raise YamlError(
                 f"{text!r} is not a valid {tag.replace(_CORE, '')}", self._location(event.start_mark)
             ) from None
+
+    def _rcl_scalar(self, event: Any) -> Any:
+        """A parameter value, typed as rcl types it (see the module's doc)."""
+        tag, text = event.tag, event.value
+        if tag == _STR or event.style in _QUOTED:
+            if tag not in (None, _STR, "!"):
+                raise self._rcl_tag_error(event)
+            return text
+        if tag not in (None, "!"):
+            raise self._rcl_tag_error(event)
+        if not text and not event.style:
+            raise YamlError(
+                'no value: rcl refuses an empty parameter value (write "" for an empty string)',
+                self._location(event.start_mark),
+            )
+        if text in _RCL_NULLS and not event.style:
+            raise YamlError(
+                f'{text} is not a ROS parameter value: rcl would read the string "{text}" '
+                "(quote it if that is meant, or remove the key)",
+                self._location(event.start_mark),
+            )
+        value = rcl_scalar(text)
+        if type(value) is str or type(value) is bool:
+            return value
+        problem = None
+        if len(text) > MAX_NUMBER_CHARS:
+            problem = f"number of {len(text)} characters: too large (integers are 64-bit, floats doubles)"
+        elif isinstance(value, float) and not math.isfinite(value):
+            problem = f"{text}: NaN and infinity are not accepted, give a finite number"
+        elif isinstance(value, float) and is_integer_text(text):
+            problem = (
+                f"integer {text} is outside the 64-bit range ROS integers have "
+                f"(rcl would read a double: write {text}.0 if one is meant)"
+            )
+        if problem is not None:
+            raise YamlError(problem, self._location(event.start_mark))
+        return value
+
+    def _rcl_tag_error(self, event: Any) -> YamlError:
+        tag = str(event.tag).replace(_CORE, "!!")
+        return YamlError(
+            f"YAML tag {tag} on a parameter value: rcl ignores tags other than !!str, so write the value "
+            'as it should be read (1.0 for a double, "1" for a string)',
+            self._location(event.start_mark),
+        )
 
     def _number(self, tag: str, text: str, event: Any) -> int | float:
         if len(text) > MAX_NUMBER_CHARS:

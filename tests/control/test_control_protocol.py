@@ -222,3 +222,18 @@ def test_key_name_rule_matches_the_spec_rule(name):
     from fleet.rules import key_name_problem
 
     assert (p.key_name_problem(name) is None) == (key_name_problem(name) is None)
+
+
+def test_merged_params_file_keeps_every_value_as_rcl_reads_it():
+    """Strings rcl would read bare as numbers stay strings when the agent rewrites the file."""
+    from fleet.expand import yaml_emit
+    from fleet.spec.yaml_source import load_yaml
+
+    section = {"max_speed": 0.5, "tag": "1e-3", "limit": "inf", "count": "1_000", "flag": "y", "tiny": 1e-10}
+    files = {"robot1.params.yaml": yaml_emit.emit({"/robot1/controller": {"ros__parameters": section}})}
+    merged = with_overrides(files, {"/robot1/controller": {"max_speed": 0.9}})
+    data, _ = load_yaml(merged["robot1.params.yaml"], "robot1.params.yaml", ((None, "ros__parameters"),))
+    got = data["/robot1/controller"]["ros__parameters"]
+    assert [(type(value), value) for value in got.values()] == [
+        (type(value), value) for value in {**section, "max_speed": 0.9}.values()
+    ]
