@@ -101,7 +101,7 @@ class LaunchRenderer:
             raise TemplateError(
                 f"rendered invalid YAML{line}: {error.message}", Location(rendered.template_file)
             ) from None
-        shape = outline(document, Location(rendered.template_file))
+        shape = outline(rendered.text, rendered.template_file)
         python = python_launch_source(document, python_comment(robot, template, self.fleet))
         return RenderedLaunch(
             text=rendered.text,

@@ -30,7 +30,7 @@ def test_bad_file_is_one_line_and_exit_2(prefix, write_launch, tmp_path):
     assert runner.returncode == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
-    assert lines[0].startswith(f"fleet: error: {path}:3: unknown action 'teleport'")
+    assert lines[0].startswith(f"fleet: error: {path}:3:3: unknown action 'teleport'")
     assert out == ""
 
 
