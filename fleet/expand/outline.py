@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from fleet.errors import LaunchFileError, Location, TemplateError
 from fleet.launchfile import description as d
-from fleet.launchfile import read_launch_text
+from fleet.launchfile.reader import read_launch_document
 from fleet.launchfile.substitutions import Text, literal
 from fleet.launchfile.substitutions import written as _written
+from fleet.spec.yaml_source import SourceMap
 
 
 @dataclass(frozen=True)
@@ -37,11 +39,12 @@ class LaunchOutline:
     nodes: tuple[NodeOutline, ...]
 
 
-def outline(text: str, template_file: str | Path) -> LaunchOutline:
-    """Outline a rendered launch file (YAML); raises TemplateError when the runner would refuse it."""
+def outline(data: Any, source: SourceMap, template_file: str | Path) -> LaunchOutline:
+    """Outline a rendered launch document (loaded by load_yaml); raises TemplateError when the
+    runner would refuse it."""
     where = Location(template_file)
     try:
-        description = read_launch_text(text, Path(str(template_file)).with_name("rendered.launch.yaml"))
+        description = read_launch_document(data, source, Path(str(template_file)))
     except LaunchFileError as problem:
         place = problem.location
         at = f"line {place.line}, column {place.column} of its output: " if place and place.line else ""

@@ -8,7 +8,10 @@ with repr(), so it is a Python literal and never code.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import Any
+
+from fleet.errors import Location, TemplateError
 
 _SUBSTITUTION = re.compile(r"\$\(([^()]*)\)")
 
@@ -20,18 +23,40 @@ from launch.conditions import IfCondition, UnlessCondition
 from launch.substitutions import EnvironmentVariable, LaunchConfiguration, ThisLaunchFileDir
 from launch_ros.actions import Node, PushRosNamespace
 from launch_ros.substitutions import FindPackageShare
-
+{extra}
 
 def generate_launch_description():
     return LaunchDescription(
 """
 
 
+def python_source(launch: dict[str, Any], comment: str, template_file: str | Path) -> str:
+    """python_launch_source, a description it cannot express refused as the template's error."""
+    try:
+        return python_launch_source(launch, comment)
+    except ValueError as problem:
+        raise TemplateError(f"cannot write the Python launch file: {problem}", Location(template_file)) from None
+
+
 def python_launch_source(launch: dict[str, Any], comment: str) -> str:
     """Python source of a launch file doing what the YAML `launch` document does."""
     comment_lines = "\n".join(f"# {line}".rstrip() for line in comment.splitlines())
     body = _actions(launch["launch"], indent=8)
-    return _HEADER.format(comment=comment_lines) + body + "\n    )\n"
+    # Imports of the actions the tutorials add, only when used: the common files stay as they were.
+    extra = "".join(line + "\n" for name, line in _EXTRA_IMPORTS.items() if re.search(rf"\b{name}\(", body))
+    return _HEADER.format(comment=comment_lines, extra=extra) + body + "\n    )\n"
+
+
+_EXTRA_IMPORTS = {
+    "TimerAction": "from launch.actions import TimerAction",
+    "IncludeLaunchDescription": "from launch.actions import IncludeLaunchDescription",
+    "AnyLaunchDescriptionSource": "from launch.launch_description_sources import AnyLaunchDescriptionSource",
+    "ExecuteProcess": "from launch.actions import ExecuteProcess",
+    "LogInfo": "from launch.actions import LogInfo",
+    "UnsetEnvironmentVariable": "from launch.actions import UnsetEnvironmentVariable",
+    "SetParameter": "from launch_ros.actions import SetParameter",
+    "SetRemap": "from launch_ros.actions import SetRemap",
+}
 
 
 def _actions(actions: list[Any], indent: int) -> str:
@@ -44,7 +69,7 @@ def _actions(actions: list[Any], indent: int) -> str:
 def _action(action: dict[str, Any], indent: int) -> str:
     ((kind, body),) = action.items()
     if kind == "group":
-        children = body if isinstance(body, list) else body.get("actions", [])
+        children = body if isinstance(body, list) else body.get("children", [])
         options = {} if isinstance(body, list) else body
         kwargs = _condition(options)
         scoped = options.get("scoped", True)
@@ -60,6 +85,8 @@ def _action(action: dict[str, Any], indent: int) -> str:
             parts.append(f"default_value={_expr(body['default'])}")
         if "description" in body:
             parts.append(f"description={str(body['description'])!r}")
+        if body.get("choice"):
+            parts.append(f"choices={[str(item['value']) for item in body['choice']]!r}")
         return f"DeclareLaunchArgument({', '.join(parts)}{_condition(body)})"
     if kind == "let":
         return f"SetLaunchConfiguration({str(body['name'])!r}, {_expr(body['value'])}{_condition(body)})"
@@ -67,6 +94,35 @@ def _action(action: dict[str, Any], indent: int) -> str:
         return f"SetEnvironmentVariable({str(body['name'])!r}, {_expr(body['value'])}{_condition(body)})"
     if kind == "node":
         return _node(body, indent)
+    if kind == "unset_env":
+        return f"UnsetEnvironmentVariable({_expr(body['name'])}{_condition(body)})"
+    if kind == "log":
+        return f"LogInfo(msg={_expr(body['message'])}{_condition(body)})"
+    if kind == "set_parameter":
+        return f"SetParameter(name={_expr(body['name'])}, value={_expr(body['value'])}{_condition(body)})"
+    if kind == "set_remap":
+        return f"SetRemap(src={_expr(body['from'])}, dst={_expr(body['to'])}{_condition(body)})"
+    if kind == "timer":
+        children = body.get("children", [])
+        return (
+            f"TimerAction(\n{' ' * (indent + 4)}period={_expr(body['period'])},\n{' ' * (indent + 4)}actions="
+            f"{_actions(children, indent + 4).lstrip()}{_condition(body)},\n{' ' * indent})"
+        )
+    if kind == "include":
+        pairs = ", ".join(f"({_expr(item['name'])}, {_expr(item['value'])})" for item in body.get("arg", []))
+        return (
+            f"IncludeLaunchDescription(AnyLaunchDescriptionSource({_expr(body['file'])}), "
+            f"launch_arguments=[{pairs}]{_condition(body)})"
+        )
+    if kind == "executable":
+        parts = [f"cmd={_token_list(body['cmd'])}"]
+        if "name" in body:
+            parts.append(f"name={_expr(body['name'])}")
+        if "output" in body:
+            parts.append(f"output={str(body['output'])!r}")
+        if body.get("env"):
+            parts.append(f"additional_env={_env(body['env'])}")
+        return f"ExecuteProcess({', '.join(parts)}{_condition(body)})"
     raise ValueError(f"no Python equivalent emitted for launch action {kind!r}")
 
 
@@ -93,11 +149,17 @@ def _node(body: dict[str, Any], indent: int) -> str:
         lines.append(f"respawn={_boolean(body['respawn'])}")
     if "respawn_delay" in body:
         lines.append(f"respawn_delay={float(body['respawn_delay'])!r}")
+    if body.get("env"):
+        lines.append(f"additional_env={_env(body['env'])}")
     condition = _condition(body).removeprefix(", ")
     if condition:
         lines.append(condition)
     inner = "".join(f"{pad}{line},\n" for line in lines)
     return f"Node(\n{inner}{' ' * indent})"
+
+
+def _env(items: list[dict[str, Any]]) -> str:
+    return "{" + ", ".join(f"{str(item['name'])!r}: {_expr(item['value'])}" for item in items) + "}"
 
 
 def _parameters(items: list[dict[str, Any]]) -> list[str]:

@@ -108,6 +108,11 @@ def yaml_actions(text: str, file: str) -> list[Entity]:
         raise LaunchFileError(f"invalid YAML: {problem.problem}", problem.location) from None
     except SpecError as problem:
         raise LaunchFileError(f"invalid YAML: {problem.message}", problem.location) from None
+    return yaml_document_actions(data, source, file)
+
+
+def yaml_document_actions(data: Any, source: SourceMap, file: str) -> list[Entity]:
+    """The actions of a YAML launch document already loaded (by load_yaml, with its SourceMap)."""
     if not isinstance(data, dict) or set(data) != {"launch"}:
         raise LaunchFileError("a launch file is a mapping with the single key 'launch'", Location(file, 1, 1))
     if not isinstance(data["launch"], list):

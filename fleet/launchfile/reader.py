@@ -17,9 +17,9 @@ import yaml
 
 from fleet.errors import LaunchFileError, Location, SpecError
 from fleet.launchfile import description as d
-from fleet.launchfile.entities import XML, YAML, Entity, xml_actions, yaml_actions
+from fleet.launchfile.entities import XML, YAML, Entity, xml_actions, yaml_actions, yaml_document_actions
 from fleet.launchfile.substitutions import SubstitutionSyntax, Text, literal, parse_substitutions
-from fleet.spec.yaml_source import read_input
+from fleet.spec.yaml_source import SourceMap, read_input
 
 _CONDITION = {"if", "unless"}
 _PROCESS = {"env", "respawn", "respawn_delay", "output", "name"}
@@ -107,6 +107,12 @@ def read_launch_text(text: str, path: Path) -> d.LaunchDescription:
             Location(path),
         )
     return d.LaunchDescription(path, [_action(entity) for entity in entities])
+
+
+def read_launch_document(data: Any, source: SourceMap, path: Path) -> d.LaunchDescription:
+    """The description of a YAML launch document the caller has loaded (load_yaml) for its own
+    use too, so the text is parsed once."""
+    return d.LaunchDescription(path, [_action(entity) for entity in yaml_document_actions(data, source, str(path))])
 
 
 def _text(entity: Entity, name: str) -> Text:

@@ -185,6 +185,7 @@ class _Interpreter:
         self.now = 0.0
         self.sequence = 0
         self.including: list[Path] = []
+        self.read_cache: dict[Path, d.LaunchDescription] = {}  # a file included twice is read once
 
     def run(self, description: d.LaunchDescription) -> list[_NodeDraft]:
         # `ros2 launch FILE a:=b` includes FILE with those arguments: they become launch
@@ -368,12 +369,14 @@ class _Interpreter:
             raise LaunchFileError(f"include cycle: {chain}", where)
         if not target.is_file():
             raise LaunchFileError(f"included launch file '{target}' not found", where)
-        try:
-            included = read_launch_file(target)
-        except LaunchFileError as problem:
-            if "Python launch file" in problem.message:
-                raise LaunchFileError(problem.message, where) from None
-            raise
+        included = self.read_cache.get(target)
+        if included is None:
+            try:
+                included = self.read_cache[target] = read_launch_file(target)
+            except LaunchFileError as problem:
+                if "Python launch file" in problem.message:  # said where the include is
+                    raise LaunchFileError(problem.message, where) from None
+                raise
         given = []
         for name, value in action.arguments:
             given.append(self.resolve(name, scope, where, file))
