@@ -85,15 +85,16 @@ def normalise(records: Path, names: dict[int, str], prefix: Path, env: dict[str,
             if key not in RUNNER_VARIABLES and env.get(key) != value
         }
         removed = sorted(key for key in env if key not in seen and key not in RUNNER_VARIABLES)
-        result.append(
-            {
-                "process": names[record["pid"]],
-                "argv": [_swap(argument, prefix) for argument in argv],
-                "params": params,
-                "env_added": added,
-                "env_removed": removed,
-            }
-        )
+        entry = {
+            "process": names[record["pid"]],
+            "argv": [_swap(argument, prefix) for argument in argv],
+            "params": params,
+            "env_added": added,
+            "env_removed": removed,
+        }
+        if record["cwd"].startswith(str(prefix)):  # a working directory the launch file chose
+            entry["cwd"] = _swap(record["cwd"], prefix)
+        result.append(entry)
     result.sort(key=lambda entry: _number(entry["process"]))
     # Keep only the first of a process name (respawns while stopping)
     unique: dict[str, dict[str, Any]] = {}
