@@ -85,7 +85,7 @@ def normalise(records: Path, names: dict[int, str], prefix: Path, env: dict[str,
             if key not in RUNNER_VARIABLES and env.get(key) != value
         }
         removed = sorted(key for key in env if key not in seen and key not in RUNNER_VARIABLES)
-        entry = {
+        entry: dict[str, Any] = {
             "process": names[record["pid"]],
             "argv": [_swap(argument, prefix) for argument in argv],
             "params": params,
