@@ -11,10 +11,11 @@ from fleet.errors import EXIT_FAILURE, FleetError, Location
 
 
 def _launch_args(items: list[str]) -> dict[str, str]:
+    """`name:=value` items, refused as ros2 launch refuses them (also `name:=` with no value)."""
     result = {}
     for item in items:
         name, separator, value = item.partition(":=")
-        if not separator or not name:
+        if not separator or not name or (not value and item.count(":=") == 1):
             raise FleetError("launch arguments are name:=value", Location(item))
         result[name] = value
     return result

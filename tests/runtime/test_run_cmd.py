@@ -129,3 +129,13 @@ def test_log_actions_are_printed(prefix, write_launch, tmp_path):
     out, err = runner.communicate(timeout=60)
     assert runner.returncode == 0, err
     assert out == "[INFO] [launch.user]: hello you\n"
+
+
+def test_empty_launch_argument_is_malformed_as_in_ros2_launch(prefix, write_launch, tmp_path):
+    path = write_launch("launch: []\n")
+    runner = fleet_run(prefix, path, "robot:=", "--log-dir", tmp_path / "logs")
+    _, err = runner.communicate(timeout=60)
+    assert runner.returncode == 2
+    assert err == "fleet: error: robot:=: launch arguments are name:=value\n"
+    runner = fleet_run(prefix, path, "url:=a:=b", "--log-dir", tmp_path / "logs")  # ros2 launch takes this one
+    assert runner.wait(timeout=60) == 0
