@@ -12,8 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from fleet.errors import Location, TemplateError
-
-_SUBSTITUTION = re.compile(r"\$\(([^()]*)\)")
+from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
 
 _HEADER = """\
 {comment}
@@ -48,6 +47,14 @@ def python_launch_source(launch: dict[str, Any], comment: str) -> str:
 
 
 _EXTRA_IMPORTS = {
+    "ThisLaunchFile": "from launch.substitutions import ThisLaunchFile",
+    "FindPackagePrefix": "from launch_ros.substitutions import FindPackagePrefix",
+    "ExecutableInPackage": "from launch_ros.substitutions import ExecutableInPackage",
+    "NotSubstitution": "from launch.substitutions import NotSubstitution",
+    "AndSubstitution": "from launch.substitutions import AndSubstitution",
+    "OrSubstitution": "from launch.substitutions import OrSubstitution",
+    "EqualsSubstitution": "from launch.substitutions import EqualsSubstitution",
+    "NotEqualsSubstitution": "from launch.substitutions import NotEqualsSubstitution",
     "TimerAction": "from launch.actions import TimerAction",
     "IncludeLaunchDescription": "from launch.actions import IncludeLaunchDescription",
     "AnyLaunchDescriptionSource": "from launch.launch_description_sources import AnyLaunchDescriptionSource",
@@ -222,30 +229,39 @@ def _expr(value: Any) -> str:
         return repr(value)
     if isinstance(value, (int, float)):
         return repr(str(value))
-    text = str(value)
-    parts: list[str] = []
-    position = 0
-    for match in _SUBSTITUTION.finditer(text):
-        if match.start() > position:
-            parts.append(repr(text[position : match.start()]))
-        parts.append(_substitution(match.group(1).split()))
-        position = match.end()
-    if position < len(text):
-        parts.append(repr(text[position:]))
-    if len(parts) == 1 and not _SUBSTITUTION.search(text):
+    return _text_expr(parse_substitutions(str(value)))
+
+
+def _text_expr(text: Text) -> str:
+    parts = [repr(part) if isinstance(part, str) else _substitution(part) for part in text]
+    if len(text) == 1 and isinstance(text[0], str):
         return parts[0]
     return "[" + ", ".join(parts) + "]" if parts else "''"
 
 
-def _substitution(words: list[str]) -> str:
-    name, arguments = words[0], words[1:]
-    if name == "var" and len(arguments) == 1:
-        return f"LaunchConfiguration({arguments[0]!r})"
-    if name == "env" and len(arguments) in (1, 2):
-        default = f", default_value={arguments[1]!r}" if len(arguments) == 2 else ""
-        return f"EnvironmentVariable({arguments[0]!r}{default})"
-    if name == "dirname" and not arguments:
-        return "ThisLaunchFileDir()"
-    if name == "find-pkg-share" and len(arguments) == 1:
-        return f"FindPackageShare({arguments[0]!r})"
-    raise ValueError(f"substitution $({' '.join(words)}) has no Python equivalent here")
+# Substitution -> (Python class, number of arguments it is given).
+_SUBSTITUTIONS = {
+    "var": "LaunchConfiguration",
+    "env": "EnvironmentVariable",
+    "dirname": "ThisLaunchFileDir",
+    "filename": "ThisLaunchFile",
+    "find-pkg-share": "FindPackageShare",
+    "find-pkg-prefix": "FindPackagePrefix",
+    "exec-in-pkg": "ExecutableInPackage",
+    "not": "NotSubstitution",
+    "and": "AndSubstitution",
+    "or": "OrSubstitution",
+    "equals": "EqualsSubstitution",
+    "not-equals": "NotEqualsSubstitution",
+}
+
+
+def _substitution(part: Subst) -> str:
+    arguments = [_text_expr(argument) for argument in part.args]
+    if part.kind == "env" and len(arguments) == 2:
+        return f"EnvironmentVariable({arguments[0]}, default_value={arguments[1]})"
+    if part.kind == "exec-in-pkg":  # $(exec-in-pkg EXE PKG)
+        return f"ExecutableInPackage({arguments[0]}, {arguments[1]})"
+    if part.kind not in _SUBSTITUTIONS:  # the reader refuses others before this runs
+        raise ValueError(f"substitution $({part.kind}) has no Python equivalent here")
+    return f"{_SUBSTITUTIONS[part.kind]}({', '.join(arguments)})"

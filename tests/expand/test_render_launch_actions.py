@@ -92,3 +92,20 @@ def test_render_refuses_what_the_runner_refuses(tmp_path, action, problem):
     line = caught.value.line()
     assert line.startswith("fleet: error: ") and "tutorial.launch.yaml.j2" in line
     assert "line 2, column " in line and problem in line
+
+
+def test_the_python_twin_expresses_every_substitution_the_reader_accepts():
+    from fleet.expand.python_launch import python_launch_source
+
+    node = {
+        "pkg": "p",
+        "exec": "e",
+        "name": "n",
+        "if": "$(and $(var a) $(not $(equals $(var b) x)))",
+        "args": "$(find-pkg-prefix p)/x $(filename) $(exec-in-pkg e p) $(env A $(var d))",
+    }
+    source = python_launch_source({"launch": [{"node": node}]}, "c")
+    compile(source, "robot.launch.py", "exec")
+    assert "condition=IfCondition([AndSubstitution([LaunchConfiguration('a')], [NotSubstitution(" in source
+    for name in ("FindPackagePrefix", "ThisLaunchFile", "ExecutableInPackage", "EqualsSubstitution"):
+        assert f"import {name}\n" in source
