@@ -11,10 +11,11 @@ from fleet.errors import EXIT_FAILURE, FleetError, Location
 
 
 def _launch_args(items: list[str]) -> dict[str, str]:
+    """`name:=value` items, refused as ros2 launch refuses them (also `name:=` with no value)."""
     result = {}
     for item in items:
         name, separator, value = item.partition(":=")
-        if not separator or not name:
+        if not separator or not name or (not value and item.count(":=") == 1):
             raise FleetError("launch arguments are name:=value", Location(item))
         result[name] = value
     return result
@@ -50,14 +51,28 @@ def run(
         "auto", "--backend", help="auto (ros2 launch when installed, else embedded), embedded, ros2."
     ),
     log_dir: Path = typer.Option(None, "--log-dir", help="Where node logs go (default ~/.ros/log/...)."),
+    show_args: bool = typer.Option(
+        False, "--show-args", "-s", help="Print the launch arguments the file declares (as ros2 launch -s)."
+    ),
+    print_description: bool = typer.Option(
+        False, "--print", "-p", help="Print the launch description (as ros2 launch -p), start nothing."
+    ),
 ) -> None:
-    """Run a launch file in the foreground; Ctrl-C stops every node cleanly."""
+    """Run a launch file in the foreground, like `ros2 launch FILE name:=value...`; Ctrl-C stops
+    every node cleanly."""
     import signal
     import threading
 
     from fleet.runtime.isolation import HOSTED
     from fleet.runtime.supervisor import LaunchSession
 
+    if show_args or print_description:
+        from fleet.launchfile import read_launch_file
+        from fleet.launchfile.show import arguments_text, description_text
+
+        description = read_launch_file(file)
+        print(arguments_text(description) if show_args else description_text(description))
+        return
     if isolation == HOSTED:  # its host processes belong to an agent, which `fleet run` is not
         raise FleetError(f"isolation '{HOSTED}' is run by an agent (fleet deploy); here use 'robot'")
     session = LaunchSession(
@@ -76,6 +91,9 @@ def run(
     previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         session.start()
+        if session.plan is not None:
+            for message in session.plan.logs:  # `log` actions, as launch prints them
+                _print_line("ros2-launch", f"[INFO] [launch.user]: {message}")
         sys.stderr.write(_summary(session) + "\n")
         sys.stderr.flush()
         # Like ros2 launch: run until interrupted or until every process has ended for good.

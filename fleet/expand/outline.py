@@ -1,33 +1,23 @@
 """What a rendered launch description declares: its arguments and its nodes.
 
-Reads the YAML launch frontend structure just enough to know the nodes' full names (for the
-per-namespace parameter sections) and the arguments (to check a robot's launch_args).  The
-embedded runner (fleet.runtime) is the full reader; this one is pure and cheap.
+The rendered text is read by the one launch reader (fleet.launchfile), the one the agents'
+embedded runner uses, so render refuses exactly what an agent would refuse to run.  From the
+description this takes, without running anything, the nodes' full names (for the per-namespace
+parameter sections) and the top-level arguments (to check a robot's launch_args).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from fleet.errors import Location, TemplateError
-
-_ACTIONS = {
-    "arg",
-    "let",
-    "set_env",
-    "unset_env",
-    "group",
-    "push_ros_namespace",
-    "node",
-    "include",
-    "executable",
-    "log",
-    "set_parameter",
-    "set_remap",
-    "timer",
-    "declare_launch_argument",
-}
+from fleet.errors import LaunchFileError, Location, TemplateError
+from fleet.launchfile import description as d
+from fleet.launchfile.reader import read_launch_document
+from fleet.launchfile.substitutions import Text, literal
+from fleet.launchfile.substitutions import written as _written
+from fleet.spec.yaml_source import SourceMap
 
 
 @dataclass(frozen=True)
@@ -36,7 +26,7 @@ class NodeOutline:
     package: str
     executable: str
     namespace: str  # absolute, as far as it is literal
-    conditional: bool  # has if/unless
+    conditional: bool  # has if/unless (or is under one)
 
     @property
     def fqn(self) -> str:
@@ -49,13 +39,22 @@ class LaunchOutline:
     nodes: tuple[NodeOutline, ...]
 
 
-def outline(data: Any, where: Location) -> LaunchOutline:
-    """Outline a parsed launch document; raises TemplateError when it is not one."""
-    if not isinstance(data, dict) or set(data) != {"launch"} or not isinstance(data["launch"], list):
-        raise TemplateError("a launch template must render to a mapping with one key 'launch' holding a list", where)
+def outline(data: Any, source: SourceMap, template_file: str | Path) -> LaunchOutline:
+    """Outline a rendered launch document (loaded by load_yaml); raises TemplateError when the
+    runner would refuse it."""
+    where = Location(template_file)
+    try:
+        description = read_launch_document(data, source, Path(str(template_file)))
+    except LaunchFileError as problem:
+        place = problem.location
+        at = f"line {place.line}, column {place.column} of its output: " if place and place.line else ""
+        raise TemplateError(f"rendered launch file refused: {at}{problem.message}", where) from None
     arguments: dict[str, str] = {}
+    for action in description.actions:
+        if isinstance(action, d.DeclareArgument):
+            arguments.setdefault(action.name, "" if action.default is None else _written(action.default))
     nodes: list[NodeOutline] = []
-    _walk(data["launch"], "/", arguments, nodes, where, top=True)
+    _walk(description.actions, "/", nodes, where, conditional=False)
     names = [node.fqn for node in nodes if not node.conditional]
     duplicates = {name for name in names if names.count(name) > 1}
     if duplicates:
@@ -63,51 +62,44 @@ def outline(data: Any, where: Location) -> LaunchOutline:
     return LaunchOutline(arguments=arguments, nodes=tuple(nodes))
 
 
-def _walk(
-    actions: list[Any], namespace: str, arguments: dict[str, str], nodes: list[NodeOutline], where: Location, top: bool
-) -> None:
+def _walk(actions: list[d.Action], namespace: str, nodes: list[NodeOutline], where: Location, conditional: bool) -> str:
+    """Follow the namespace as launch_ros would; returns the namespace after the actions."""
     for action in actions:
-        if not isinstance(action, dict) or len(action) != 1:
-            raise TemplateError(f"each launch action must be a mapping with one key, got {action!r:.60}", where)
-        ((kind, body),) = action.items()
-        if kind not in _ACTIONS:
-            raise TemplateError(f"unknown launch action {kind!r}", where)
-        if kind == "group":
-            children = body if isinstance(body, list) else (body or {}).get("actions", body)
-            if not isinstance(children, list):
-                raise TemplateError("a group holds a list of actions", where)
-            _walk(children, namespace, arguments, nodes, where, top=False)
-        elif kind == "push_ros_namespace":
-            pushed = _literal(body, "namespace", where)
+        under_condition = conditional or action.condition is not None
+        if isinstance(action, d.Group):
+            inner = _walk(action.actions, namespace, nodes, where, under_condition)
+            if action.scoped is False:
+                namespace = inner
+        elif isinstance(action, d.Timer):
+            _walk(action.actions, namespace, nodes, where, under_condition)
+        elif isinstance(action, d.PushNamespace):
+            pushed = _literal(action.namespace, "namespace", where)
             namespace = pushed if pushed.startswith("/") else f"{namespace.rstrip('/')}/{pushed}"
-        elif kind == "arg":
-            name = _literal(body, "name", where)
-            if top:
-                arguments[name] = str(body.get("default", ""))
-        elif kind == "node":
-            name = _literal(body, "name", where)
-            node_namespace = body.get("namespace")
-            if node_namespace is None:
+        elif isinstance(action, d.Node):
+            if action.name is None:
+                raise TemplateError("launch action is missing 'name'", where)
+            name = _literal(action.name, "name", where)
+            own = None if action.namespace is None else _literal(action.namespace, "namespace", where)
+            if own is None:
                 full = namespace
-            elif str(node_namespace).startswith("/"):
-                full = str(node_namespace)
+            elif own.startswith("/"):
+                full = own
             else:
-                full = f"{namespace.rstrip('/')}/{node_namespace}"
+                full = f"{namespace.rstrip('/')}/{own}"
             nodes.append(
                 NodeOutline(
                     name=name,
-                    package=str(body.get("pkg", "")),
-                    executable=str(body.get("exec", "")),
+                    package=_written(action.package),
+                    executable=_written(action.executable),
                     namespace=full,
-                    conditional="if" in body or "unless" in body,
+                    conditional=under_condition,
                 )
             )
+    return namespace
 
 
-def _literal(body: Any, key: str, where: Location) -> str:
-    if not isinstance(body, dict) or key not in body:
-        raise TemplateError(f"launch action is missing {key!r}", where)
-    value = str(body[key])
-    if "$(" in value:
-        raise TemplateError(f"{key} {value!r} must be literal in a fleet template (no substitutions)", where)
+def _literal(text: Text, key: str, where: Location) -> str:
+    value = literal(text)
+    if value is None:
+        raise TemplateError(f"{key} {_written(text)!r} must be literal in a fleet template (no substitutions)", where)
     return value

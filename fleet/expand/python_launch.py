@@ -8,9 +8,11 @@ with repr(), so it is a Python literal and never code.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import Any
 
-_SUBSTITUTION = re.compile(r"\$\(([^()]*)\)")
+from fleet.errors import Location, TemplateError
+from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
 
 _HEADER = """\
 {comment}
@@ -20,18 +22,48 @@ from launch.conditions import IfCondition, UnlessCondition
 from launch.substitutions import EnvironmentVariable, LaunchConfiguration, ThisLaunchFileDir
 from launch_ros.actions import Node, PushRosNamespace
 from launch_ros.substitutions import FindPackageShare
-
+{extra}
 
 def generate_launch_description():
     return LaunchDescription(
 """
 
 
+def python_source(launch: dict[str, Any], comment: str, template_file: str | Path) -> str:
+    """python_launch_source, a description it cannot express refused as the template's error."""
+    try:
+        return python_launch_source(launch, comment)
+    except ValueError as problem:
+        raise TemplateError(f"cannot write the Python launch file: {problem}", Location(template_file)) from None
+
+
 def python_launch_source(launch: dict[str, Any], comment: str) -> str:
     """Python source of a launch file doing what the YAML `launch` document does."""
     comment_lines = "\n".join(f"# {line}".rstrip() for line in comment.splitlines())
     body = _actions(launch["launch"], indent=8)
-    return _HEADER.format(comment=comment_lines) + body + "\n    )\n"
+    # Imports of the actions the tutorials add, only when used: the common files stay as they were.
+    extra = "".join(line + "\n" for name, line in _EXTRA_IMPORTS.items() if re.search(rf"\b{name}\(", body))
+    return _HEADER.format(comment=comment_lines, extra=extra) + body + "\n    )\n"
+
+
+_EXTRA_IMPORTS = {
+    "ThisLaunchFile": "from launch.substitutions import ThisLaunchFile",
+    "FindPackagePrefix": "from launch_ros.substitutions import FindPackagePrefix",
+    "ExecutableInPackage": "from launch_ros.substitutions import ExecutableInPackage",
+    "NotSubstitution": "from launch.substitutions import NotSubstitution",
+    "AndSubstitution": "from launch.substitutions import AndSubstitution",
+    "OrSubstitution": "from launch.substitutions import OrSubstitution",
+    "EqualsSubstitution": "from launch.substitutions import EqualsSubstitution",
+    "NotEqualsSubstitution": "from launch.substitutions import NotEqualsSubstitution",
+    "TimerAction": "from launch.actions import TimerAction",
+    "IncludeLaunchDescription": "from launch.actions import IncludeLaunchDescription",
+    "AnyLaunchDescriptionSource": "from launch.launch_description_sources import AnyLaunchDescriptionSource",
+    "ExecuteProcess": "from launch.actions import ExecuteProcess",
+    "LogInfo": "from launch.actions import LogInfo",
+    "UnsetEnvironmentVariable": "from launch.actions import UnsetEnvironmentVariable",
+    "SetParameter": "from launch_ros.actions import SetParameter",
+    "SetRemap": "from launch_ros.actions import SetRemap",
+}
 
 
 def _actions(actions: list[Any], indent: int) -> str:
@@ -44,7 +76,7 @@ def _actions(actions: list[Any], indent: int) -> str:
 def _action(action: dict[str, Any], indent: int) -> str:
     ((kind, body),) = action.items()
     if kind == "group":
-        children = body if isinstance(body, list) else body.get("actions", [])
+        children = body if isinstance(body, list) else body.get("children", [])
         options = {} if isinstance(body, list) else body
         kwargs = _condition(options)
         scoped = options.get("scoped", True)
@@ -60,6 +92,8 @@ def _action(action: dict[str, Any], indent: int) -> str:
             parts.append(f"default_value={_expr(body['default'])}")
         if "description" in body:
             parts.append(f"description={str(body['description'])!r}")
+        if body.get("choice"):
+            parts.append(f"choices={[str(item['value']) for item in body['choice']]!r}")
         return f"DeclareLaunchArgument({', '.join(parts)}{_condition(body)})"
     if kind == "let":
         return f"SetLaunchConfiguration({str(body['name'])!r}, {_expr(body['value'])}{_condition(body)})"
@@ -67,6 +101,35 @@ def _action(action: dict[str, Any], indent: int) -> str:
         return f"SetEnvironmentVariable({str(body['name'])!r}, {_expr(body['value'])}{_condition(body)})"
     if kind == "node":
         return _node(body, indent)
+    if kind == "unset_env":
+        return f"UnsetEnvironmentVariable({_expr(body['name'])}{_condition(body)})"
+    if kind == "log":
+        return f"LogInfo(msg={_expr(body['message'])}{_condition(body)})"
+    if kind == "set_parameter":
+        return f"SetParameter(name={_expr(body['name'])}, value={_expr(body['value'])}{_condition(body)})"
+    if kind == "set_remap":
+        return f"SetRemap(src={_expr(body['from'])}, dst={_expr(body['to'])}{_condition(body)})"
+    if kind == "timer":
+        children = body.get("children", [])
+        return (
+            f"TimerAction(\n{' ' * (indent + 4)}period={_expr(body['period'])},\n{' ' * (indent + 4)}actions="
+            f"{_actions(children, indent + 4).lstrip()}{_condition(body)},\n{' ' * indent})"
+        )
+    if kind == "include":
+        pairs = ", ".join(f"({_expr(item['name'])}, {_expr(item['value'])})" for item in body.get("arg", []))
+        return (
+            f"IncludeLaunchDescription(AnyLaunchDescriptionSource({_expr(body['file'])}), "
+            f"launch_arguments=[{pairs}]{_condition(body)})"
+        )
+    if kind == "executable":
+        parts = [f"cmd={_token_list(body['cmd'])}"]
+        if "name" in body:
+            parts.append(f"name={_expr(body['name'])}")
+        if "output" in body:
+            parts.append(f"output={str(body['output'])!r}")
+        if body.get("env"):
+            parts.append(f"additional_env={_env(body['env'])}")
+        return f"ExecuteProcess({', '.join(parts)}{_condition(body)})"
     raise ValueError(f"no Python equivalent emitted for launch action {kind!r}")
 
 
@@ -93,11 +156,17 @@ def _node(body: dict[str, Any], indent: int) -> str:
         lines.append(f"respawn={_boolean(body['respawn'])}")
     if "respawn_delay" in body:
         lines.append(f"respawn_delay={float(body['respawn_delay'])!r}")
+    if body.get("env"):
+        lines.append(f"additional_env={_env(body['env'])}")
     condition = _condition(body).removeprefix(", ")
     if condition:
         lines.append(condition)
     inner = "".join(f"{pad}{line},\n" for line in lines)
     return f"Node(\n{inner}{' ' * indent})"
+
+
+def _env(items: list[dict[str, Any]]) -> str:
+    return "{" + ", ".join(f"{str(item['name'])!r}: {_expr(item['value'])}" for item in items) + "}"
 
 
 def _parameters(items: list[dict[str, Any]]) -> list[str]:
@@ -160,30 +229,39 @@ def _expr(value: Any) -> str:
         return repr(value)
     if isinstance(value, (int, float)):
         return repr(str(value))
-    text = str(value)
-    parts: list[str] = []
-    position = 0
-    for match in _SUBSTITUTION.finditer(text):
-        if match.start() > position:
-            parts.append(repr(text[position : match.start()]))
-        parts.append(_substitution(match.group(1).split()))
-        position = match.end()
-    if position < len(text):
-        parts.append(repr(text[position:]))
-    if len(parts) == 1 and not _SUBSTITUTION.search(text):
+    return _text_expr(parse_substitutions(str(value)))
+
+
+def _text_expr(text: Text) -> str:
+    parts = [repr(part) if isinstance(part, str) else _substitution(part) for part in text]
+    if len(text) == 1 and isinstance(text[0], str):
         return parts[0]
     return "[" + ", ".join(parts) + "]" if parts else "''"
 
 
-def _substitution(words: list[str]) -> str:
-    name, arguments = words[0], words[1:]
-    if name == "var" and len(arguments) == 1:
-        return f"LaunchConfiguration({arguments[0]!r})"
-    if name == "env" and len(arguments) in (1, 2):
-        default = f", default_value={arguments[1]!r}" if len(arguments) == 2 else ""
-        return f"EnvironmentVariable({arguments[0]!r}{default})"
-    if name == "dirname" and not arguments:
-        return "ThisLaunchFileDir()"
-    if name == "find-pkg-share" and len(arguments) == 1:
-        return f"FindPackageShare({arguments[0]!r})"
-    raise ValueError(f"substitution $({' '.join(words)}) has no Python equivalent here")
+# Substitution -> (Python class, number of arguments it is given).
+_SUBSTITUTIONS = {
+    "var": "LaunchConfiguration",
+    "env": "EnvironmentVariable",
+    "dirname": "ThisLaunchFileDir",
+    "filename": "ThisLaunchFile",
+    "find-pkg-share": "FindPackageShare",
+    "find-pkg-prefix": "FindPackagePrefix",
+    "exec-in-pkg": "ExecutableInPackage",
+    "not": "NotSubstitution",
+    "and": "AndSubstitution",
+    "or": "OrSubstitution",
+    "equals": "EqualsSubstitution",
+    "not-equals": "NotEqualsSubstitution",
+}
+
+
+def _substitution(part: Subst) -> str:
+    arguments = [_text_expr(argument) for argument in part.args]
+    if part.kind == "env" and len(arguments) == 2:
+        return f"EnvironmentVariable({arguments[0]}, default_value={arguments[1]})"
+    if part.kind == "exec-in-pkg":  # $(exec-in-pkg EXE PKG)
+        return f"ExecutableInPackage({arguments[0]}, {arguments[1]})"
+    if part.kind not in _SUBSTITUTIONS:  # the reader refuses others before this runs
+        raise ValueError(f"substitution $({part.kind}) has no Python equivalent here")
+    return f"{_SUBSTITUTIONS[part.kind]}({', '.join(arguments)})"

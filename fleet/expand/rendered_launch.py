@@ -20,10 +20,10 @@ from typing import Any
 
 from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
-from fleet.expand.python_launch import python_launch_source
+from fleet.expand.python_launch import python_source
 from fleet.expand.templating import TemplateSet
 from fleet.rules import PARAMS_SUFFIX
-from fleet.spec.yaml_source import safe_load
+from fleet.spec.yaml_source import load_yaml
 
 # Valid ROS name tokens, so the placeholder rendering outlines like a real one.
 _NAME = "fleetplaceholdername7f3a"
@@ -96,14 +96,14 @@ class LaunchRenderer:
     ) -> RenderedLaunch:
         rendered = self.templates.render(template, context, arguments, where)
         try:
-            document = safe_load(rendered.text, rendered.template_file)
+            document, source = load_yaml(rendered.text, rendered.template_file)
         except SpecError as error:
             line = f" at line {error.location.line} of its output" if error.location and error.location.line else ""
             raise TemplateError(
                 f"rendered invalid YAML{line}: {error.message}", Location(rendered.template_file)
             ) from None
-        shape = outline(document, Location(rendered.template_file))
-        python = python_launch_source(document, python_comment(robot, template, self.fleet))
+        shape = outline(document, source, rendered.template_file)
+        python = python_source(document, python_comment(robot, template, self.fleet), rendered.template_file)
         return RenderedLaunch(
             text=rendered.text,
             outline=shape,

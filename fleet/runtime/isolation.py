@@ -32,6 +32,9 @@ class ProcessSpec:
     respawn: bool = False
     respawn_delay: float = 0.0
     echo: bool = False  # print its lines (output: screen or both)
+    env_unset: tuple[str, ...] = ()  # unset_env variables for this process
+    delay: float = 0.0  # seconds after the session starts (timer actions)
+    cwd: str | None = None
 
 
 def single(node: NodeLaunch) -> ProcessSpec:
@@ -43,13 +46,23 @@ def single(node: NodeLaunch) -> ProcessSpec:
         respawn=node.respawn,
         respawn_delay=node.respawn_delay,
         echo=node.output in ("screen", "both"),
+        env_unset=node.env_unset,
+        delay=node.delay,
+        cwd=node.cwd,
     )
 
 
 def composable(node: NodeLaunch) -> bool:
-    # Plain (non-ROS) arguments would have nowhere to go in the composite's argv.
+    # Plain (non-ROS) arguments would have nowhere to go in the composite's argv; a node started
+    # by a timer or with its environment pruned is started alone.
     return (
-        node.package == PACKAGE and node.executable in COMPOSABLE and len(node.cmd) > 1 and node.cmd[1] == "--ros-args"
+        node.package == PACKAGE
+        and node.executable in COMPOSABLE
+        and len(node.cmd) > 1
+        and node.cmd[1] == "--ros-args"
+        and node.delay == 0.0
+        and not node.env_unset
+        and node.cwd is None
     )
 
 

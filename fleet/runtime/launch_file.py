@@ -1,18 +1,14 @@
-"""Read a ROS 2 YAML launch file (the subset fleet renders) into launch_ros-identical commands.
+"""Run a launch description (fleet.launchfile) like launch_ros Jazzy would, without starting
+anything: the processes it starts, with launch_ros-identical command lines.
 
 The embedded runner must start nodes exactly as `ros2 launch` would (see DESIGN.md, "How
-launch_ros starts a node").  Reading happens in two passes, both before anything starts:
-
-1. `_Reader` turns the YAML into action objects, checking every action, key, type and
-   substitution name, in every branch (also the ones a condition will skip), with line numbers.
-2. `_Interpreter` executes them in order like launch does: conditions, launch configurations
-   (`arg`, `let`), scoped groups, pushed namespaces, `set_env`, substitutions, and drafts one
-   `NodeLaunch` per node.
-
-Only then are the inline parameters written to temporary files (launch_ros does the same) and
-the command lines assembled.  Attribute types follow launch_yaml, which does not coerce: an
-attribute launch reads as a string must be a YAML string (`respawn: 'true'`, not `true`), so a
-file accepted here also runs under `ros2 launch`.
+launch_ros starts a node"; tests/conformance holds what real launch_ros started for a corpus of
+files).  The reader (fleet.launchfile) has checked every action, attribute and substitution
+before this runs; `_Interpreter` executes the actions in order like launch does: conditions,
+launch configurations (`arg`, `let`, include arguments, and those launch_ros keeps there itself:
+`ros_namespace`, `global_params`, `ros_remaps`), scoped groups, environment, includes, timers,
+and drafts one `NodeLaunch` per process.  Only then are inline parameters written to temporary
+files (launch_ros does the same) and the command lines assembled.
 """
 
 from __future__ import annotations
@@ -28,9 +24,14 @@ from typing import Any
 
 import yaml
 
-from fleet.errors import FleetError, LaunchFileError, Location, SpecError
+from fleet.errors import FleetError, LaunchFileError, Location
+from fleet.launchfile import description as d
+from fleet.launchfile import read_launch_file
+from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
+from fleet.launchfile.substitutions import written as _written
+
+__all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
 from fleet.runtime import ament
-from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml
 
 # ---------------------------------------------------------------------------------------------
 # Results
@@ -38,19 +39,22 @@ from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml
 
 @dataclass
 class NodeLaunch:
-    """One node, as launch_ros would start it."""
+    """One process (a node, or a plain `executable`), as launch would start it."""
 
     name: str | None  # node name given in the file; None: the executable's default
     namespace: str | None  # absolute; None when neither the node nor a group gives one
-    package: str
+    package: str  # "" for a plain executable
     executable: str
     cmd: list[str]  # the full command line, executable path first
-    env: dict[str, str] = field(default_factory=dict)  # set_env variables in effect
+    env: dict[str, str] = field(default_factory=dict)  # set_env variables and the node's env in effect
     respawn: bool = False
     respawn_delay: float = 0.0
     output: str = "log"  # screen | log | both
     process_name: str = ""  # launch's process name: `<exe>-<n>`, the prefix of screen lines
     location: Location | None = None
+    env_unset: tuple[str, ...] = ()  # unset_env variables in effect
+    delay: float = 0.0  # seconds after the launch starts (timers)
+    cwd: str | None = None
 
     @property
     def fqn(self) -> str | None:
@@ -67,462 +71,72 @@ class NodeLaunch:
 
 
 @dataclass
+class LaunchArgument:
+    name: str
+    default: str | None  # as written, substitutions unresolved
+    description: str | None
+    choices: tuple[str, ...] | None
+
+
+@dataclass
 class LaunchPlan:
     path: Path
     arguments: dict[str, str]  # launch arguments (declared and given) and their values
     nodes: list[NodeLaunch]
+    logs: list[str] = field(default_factory=list)  # what `log` actions said, in order
 
 
 # ---------------------------------------------------------------------------------------------
-# YAML with line numbers
-
-
-class _Map(dict[Any, Any]):
-    """A YAML mapping that remembers where it and each of its keys start (1-based lines).
-    _with_lines makes every mapping one."""
-
-    line: int | None = None
-    key_lines: dict[Any, int]
-
-
-def _with_lines(value: Any, path: tuple, source: SourceMap) -> Any:
-    """`value` (data from load_yaml) with each mapping a _Map holding its lines from `source`."""
-    if isinstance(value, dict):
-        result = _Map()
-        result.line = source.positions[path][0]
-        result.key_lines = {}
-        for key, item in value.items():
-            result[key] = _with_lines(item, (*path, key), source)
-            result.key_lines[key] = source.key_positions[(*path, key)][0]
-        return result
-    if isinstance(value, list):
-        return [_with_lines(item, (*path, index), source) for index, item in enumerate(value)]
-    return value
-
-
-# ---------------------------------------------------------------------------------------------
-# Substitutions: `$(var X)`, `$(env X)`, `$(env X DEFAULT)`, `$(dirname)`, `$(find-pkg-share P)`
-
-
-@dataclass(frozen=True)
-class _Subst:
-    kind: str
-    args: tuple  # tuple of parts (each a tuple of str | _Subst)
-
-
-_Parts = tuple  # tuple[str | _Subst, ...]
-
-_ARITY = {"var": (1, 1), "env": (1, 2), "dirname": (0, 0), "find-pkg-share": (1, 1)}
-
-
-class _SubstitutionSyntax(Exception):
-    pass
-
-
-def _parse_parts(text: str, start: int, inside: bool) -> tuple[list, int]:
-    """Parse text (or one substitution argument when `inside`) into literal and _Subst parts."""
-    parts: list = []
-    literal: list[str] = []
-    index = start
-    quote: str | None = None
-    while index < len(text):
-        char = text[index]
-        if text.startswith("$(", index):
-            if literal:
-                parts.append("".join(literal))
-                literal = []
-            subst, index = _parse_subst(text, index + 2)
-            parts.append(subst)
-            continue
-        if inside:
-            if quote is not None:
-                if char == quote:
-                    quote = None
-                    index += 1
-                    continue
-            elif char in "'\"":
-                quote = char
-                index += 1
-                continue
-            elif char.isspace() or char == ")":
-                break
-        literal.append(char)
-        index += 1
-    if quote is not None:
-        raise _SubstitutionSyntax(f"unterminated quote in {text!r}")
-    if literal:
-        parts.append("".join(literal))
-    return parts, index
-
-
-def _parse_subst(text: str, index: int) -> tuple[_Subst, int]:
-    """Parse `name args...)` starting after `$(`; return the substitution and the index after `)`."""
-    match = re.compile(r"\s*([A-Za-z][A-Za-z0-9_-]*)").match(text, index)
-    if match is None:
-        raise _SubstitutionSyntax(f"substitution without a name in {text!r}")
-    kind = match.group(1)
-    index = match.end()
-    args = []
-    while True:
-        while index < len(text) and text[index].isspace():
-            index += 1
-        if index >= len(text):
-            raise _SubstitutionSyntax(f"unterminated substitution '$({kind}' in {text!r}")
-        if text[index] == ")":
-            index += 1
-            break
-        arg, index = _parse_parts(text, index, inside=True)
-        args.append(tuple(arg))
-    if kind not in _ARITY:
-        supported = ", ".join(f"$({name})" for name in _ARITY)
-        raise _SubstitutionSyntax(f"unknown substitution '$({kind})' (the embedded runner supports {supported})")
-    low, high = _ARITY[kind]
-    if not low <= len(args) <= high:
-        raise _SubstitutionSyntax(f"'$({kind})' takes {low}..{high} arguments, got {len(args)}")
-    return _Subst(kind, tuple(args)), index
-
-
-def parse_substitutions(text: str) -> _Parts:
-    parts, _ = _parse_parts(text, 0, inside=False)
-    return tuple(parts)
-
-
-# ---------------------------------------------------------------------------------------------
-# Pass 1: actions
-
-
-@dataclass
-class _Condition:
-    keyword: str  # if | unless
-    parts: _Parts
-
-
-@dataclass
-class _Action:
-    line: int | None
-    condition: _Condition | None
-
-
-@dataclass
-class _Arg(_Action):
-    name: str
-    default: _Parts | None
-
-
-@dataclass
-class _Let(_Action):
-    name: _Parts
-    value: _Parts
-
-
-@dataclass
-class _SetEnv(_Action):
-    name: _Parts
-    value: _Parts
-
-
-@dataclass
-class _PushNamespace(_Action):
-    namespace: _Parts
-
-
-@dataclass
-class _Group(_Action):
-    actions: list
-    scoped: _Parts | bool
-
-
-@dataclass
-class _ParamFile:
-    path: _Parts
-    line: int | None
-
-
-@dataclass
-class _InlineParam:
-    name: _Parts
-    value: Any  # parts, a scalar, or a list of parts/scalars
-    line: int | None
-
-
-@dataclass
-class _Node(_Action):
-    package: _Parts
-    executable: _Parts
-    name: _Parts | None
-    namespace: _Parts | None
-    params: list[_ParamFile | _InlineParam]
-    remaps: list[tuple[_Parts, _Parts]]
-    args: _Parts | None
-    ros_args: _Parts | None
-    respawn: _Parts | None
-    respawn_delay: float
-    output: _Parts | None
-
-
-_COMMON_KEYS = {"if", "unless"}
-_NODE_KEYS = {
-    "pkg",
-    "exec",
-    "name",
-    "namespace",
-    "param",
-    "remap",
-    "args",
-    "ros_args",
-    "respawn",
-    "respawn_delay",
-    "output",
-}
-_ACTION_KEYS = {
-    "arg": {"name", "default", "description"},
-    "let": {"name", "value"},
-    "set_env": {"name", "value"},
-    "push_ros_namespace": {"namespace"},
-    "group": {"children", "scoped"},
-    "node": _NODE_KEYS,
-}
-
-
-def _line(error: FleetError) -> int | None:
-    return error.location.line if error.location is not None else None
-
-
-class _Reader:
-    """Pass 1: YAML data to action objects, refusing anything outside the supported subset."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def error(self, message: str, line: int | None) -> LaunchFileError:
-        return LaunchFileError(message, Location(self.path, line))
-
-    def read(self, text: str) -> list:
-        from fleet.spec.yaml_source import safe_load
-
-        try:
-            safe_load(text, self.path)  # the limits of every fleet input first: depth, aliases, tags, numbers
-        except SpecError as problem:
-            raise LaunchFileError(f"invalid YAML: {problem.message}", problem.location) from None
-        try:
-            loaded, source = load_yaml(text, self.path)
-        except YamlSyntaxError as problem:
-            raise self.error(f"invalid YAML: {problem.problem}", _line(problem)) from None
-        except SpecError as problem:  # duplicate keys and the like, worded by the reader
-            raise self.error(problem.message, _line(problem)) from None
-        source.locate(())  # the reader finds places only when first asked: every line is needed here
-        data = _with_lines(loaded, (), source)
-        if not isinstance(data, _Map) or set(data) != {"launch"}:
-            raise self.error("a launch file is a mapping with the single key 'launch'", 1)
-        actions = data["launch"]
-        if not isinstance(actions, list):
-            raise self.error("'launch' must be a list of actions", data.key_lines["launch"])
-        return self.actions(actions, data.key_lines["launch"])
-
-    def actions(self, items: list, line: int | None) -> list:
-        result = []
-        for item in items:
-            if not isinstance(item, _Map) or len(item) != 1:
-                raise self.error(
-                    "each action is a mapping with exactly one key, the action type",
-                    getattr(item, "line", line),
-                )
-            kind, body = next(iter(item.items()))
-            result.append(self.action(kind, body, item.key_lines[kind]))
-        return result
-
-    def action(self, kind: Any, body: Any, line: int) -> _Action:
-        if kind not in _ACTION_KEYS:
-            supported = ", ".join(sorted(_ACTION_KEYS))
-            raise self.error(f"unknown action '{kind}' (the embedded runner supports {supported})", line)
-        if kind == "group" and isinstance(body, list):
-            body = _Map(children=body)
-            body.line, body.key_lines = line, {"children": line}
-        if not isinstance(body, _Map):
-            raise self.error(f"action '{kind}' needs a mapping of attributes", line)
-        body_line = body.line or line
-        unknown = set(body) - _ACTION_KEYS[kind] - _COMMON_KEYS
-        if unknown:
-            key = sorted(unknown, key=str)[0]
-            allowed = ", ".join(sorted(_ACTION_KEYS[kind] | _COMMON_KEYS))
-            raise self.error(
-                f"unknown key '{key}' in action '{kind}' (allowed: {allowed})",
-                body.key_lines.get(key, body_line),
-            )
-        condition = self.condition(kind, body)
-        attrs = _Attributes(self, kind, body)
-        if kind == "arg":
-            return _Arg(line, condition, attrs.string("name", substitutions=False), attrs.optional("default"))
-        if kind == "let":
-            return _Let(line, condition, attrs.parts("name"), attrs.parts("value"))
-        if kind == "set_env":
-            return _SetEnv(line, condition, attrs.parts("name"), attrs.parts("value"))
-        if kind == "push_ros_namespace":
-            return _PushNamespace(line, condition, attrs.parts("namespace"))
-        if kind == "group":
-            children = body.get("children")
-            if not isinstance(children, list):
-                raise self.error("'group' needs a list of actions ('children')", body_line)
-            scoped = attrs.boolean("scoped", default=True)
-            return _Group(line, condition, self.actions(children, body_line), scoped)
-        return self.node(line, condition, attrs, body)
-
-    def condition(self, kind: str, body: _Map) -> _Condition | None:
-        if "if" in body and "unless" in body:
-            raise self.error(f"'if' and 'unless' cannot both be used on '{kind}'", body.line)
-        for keyword in ("if", "unless"):
-            if keyword in body:
-                attrs = _Attributes(self, kind, body)
-                return _Condition(keyword, attrs.parts(keyword))
-        return None
-
-    def node(self, line: int, condition: _Condition | None, attrs: _Attributes, body: _Map) -> _Node:
-        delay = body.get("respawn_delay", 0.0)
-        if "respawn_delay" in body and (not isinstance(delay, float) or delay < 0.0):
-            raise self.error(
-                "'respawn_delay' of 'node' must be a non-negative float (write 2.0, not 2: "
-                "ros2 launch does not convert)",
-                body.key_lines["respawn_delay"],
-            )
-        return _Node(
-            line,
-            condition,
-            package=attrs.parts("pkg"),
-            executable=attrs.parts("exec"),
-            name=attrs.optional("name"),
-            namespace=attrs.optional("namespace"),
-            params=self.params(body),
-            remaps=self.remaps(body),
-            args=attrs.optional("args"),
-            ros_args=attrs.optional("ros_args"),
-            respawn=attrs.optional("respawn"),
-            respawn_delay=float(delay),
-            output=attrs.optional("output"),
-        )
-
-    def _items(self, body: _Map, key: str) -> list[_Map]:
-        items = body.get(key, [])
-        if not isinstance(items, list) or not all(isinstance(item, _Map) for item in items):
-            raise self.error(f"'{key}' of 'node' must be a list of mappings", body.key_lines[key])
-        return items
-
-    def params(self, body: _Map) -> list[_ParamFile | _InlineParam]:
-        result: list[_ParamFile | _InlineParam] = []
-        for item in self._items(body, "param"):
-            keys = set(item)
-            attrs = _Attributes(self, "param", item)
-            if keys == {"from"}:
-                result.append(_ParamFile(attrs.parts("from"), item.line))
-            elif keys == {"name", "value"}:
-                value = self.param_value(item["value"], item.key_lines["value"])
-                result.append(_InlineParam(attrs.parts("name"), value, item.line))
-            else:
-                raise self.error(
-                    "a node 'param' item is either {from: FILE} or {name: N, value: V}; "
-                    f"got keys {sorted(keys, key=str)}",
-                    item.line,
-                )
-        return result
-
-    def param_value(self, value: Any, line: int) -> Any:
-        if isinstance(value, str):
-            return self.substitutions(value, line)
-        if isinstance(value, (bool, int, float)):
-            return value
-        if isinstance(value, list) and value and all(isinstance(element, (bool, int, float, str)) for element in value):
-            return [self.param_value(element, line) for element in value]
-        raise self.error(
-            f"a parameter value must be a bool, int, float, string or a non-empty list of those (got {value!r})",
-            line,
-        )
-
-    def remaps(self, body: _Map) -> list[tuple[_Parts, _Parts]]:
-        result = []
-        for item in self._items(body, "remap"):
-            if set(item) != {"from", "to"}:
-                raise self.error(
-                    f"a node 'remap' item is {{from: NAME, to: NAME}}; got keys {sorted(item, key=str)}",
-                    item.line,
-                )
-            attrs = _Attributes(self, "remap", item)
-            result.append((attrs.parts("from"), attrs.parts("to")))
-        return result
-
-    def substitutions(self, text: str, line: int | None) -> _Parts:
-        try:
-            return parse_substitutions(text)
-        except _SubstitutionSyntax as problem:
-            raise self.error(str(problem), line) from None
-
-
-class _Attributes:
-    """Typed access to an action's attributes, with launch_yaml's (non-coercing) type rules."""
-
-    def __init__(self, reader: _Reader, kind: str, body: _Map):
-        self.reader, self.kind, self.body = reader, kind, body
-
-    def _line(self, key: str) -> int | None:
-        return self.body.key_lines.get(key, self.body.line)
-
-    def string(self, key: str, substitutions: bool = True) -> Any:
-        if key not in self.body:
-            raise self.reader.error(f"action '{self.kind}' needs '{key}'", self.body.line)
-        value = self.body[key]
-        if not isinstance(value, str):
-            raise self.reader.error(
-                f"'{key}' of '{self.kind}' must be a string (quote it: '{value}'); "
-                "ros2 launch does not convert YAML values",
-                self._line(key),
-            )
-        return self.reader.substitutions(value, self._line(key)) if substitutions else value
-
-    def parts(self, key: str) -> _Parts:
-        return self.string(key)
-
-    def optional(self, key: str) -> _Parts | None:
-        return self.string(key) if key in self.body else None
-
-    def boolean(self, key: str, default: bool) -> _Parts | bool:
-        value = self.body.get(key, default)
-        if isinstance(value, bool):
-            return value
-        return self.string(key)
-
-
-# ---------------------------------------------------------------------------------------------
-# Pass 2: execution
+# Execution
 
 
 @dataclass
 class _Scope:
-    """What a scoped group saves and restores: launch configurations, environment, namespace."""
+    """What a scoped group saves and restores: launch configurations (launch_ros keeps the
+    pushed namespace, set_parameter and set_remap there too) and the environment."""
 
-    configurations: dict[str, str]
+    configurations: dict[str, Any]
     env: dict[str, str]  # set_env variables
-    namespace: str | None
+    unset: set[str]  # unset_env variables
 
     def copy(self) -> _Scope:
-        return _Scope(dict(self.configurations), dict(self.env), self.namespace)
+        # Shallow, like launch's PushLaunchConfigurations: the `global_params` and `ros_remaps`
+        # lists are shared with the enclosing scope, so launch_ros's set_parameter / set_remap
+        # in a scoped group also reach nodes after the group once the list exists outside it.
+        # An oddity of launch_ros, kept.
+        return _Scope(dict(self.configurations), dict(self.env), set(self.unset))
 
 
 @dataclass
 class _NodeDraft:
-    """A node before its inline parameters are written: params are ('file', path) or
-    ('inline', key, {name: value})."""
+    """A process before its inline parameters are written: params are ('file', path),
+    ('inline', key, {name: value}) or ('rule', 'name:=value')."""
 
     launch: NodeLaunch
-    executable_path: Path
+    executable_path: Path | None  # None: a plain executable (cmd is final)
     arguments: list[str]
     ros_arguments: list[str] | None
     params: list[tuple]
     remaps: list[tuple[str, str]]
+    order: int = 0
+    process_base: str = ""
+
+
+@dataclass
+class _Timer:
+    due: float
+    order: int
+    actions: list[d.Action]
+    file: Path
 
 
 _NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_SUBSTITUTION_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def _prefix_namespace(base: str | None, namespace: str | None) -> str | None:
-    """A relative namespace is appended to the base; an absolute one replaces it."""
+    """launch_ros's prefix_namespace: a relative namespace is appended to the base, an absolute
+    one replaces it, an empty base is no base; trailing slashes go."""
     if namespace is None:
         combined = base
     elif not base or namespace.startswith("/"):
@@ -547,229 +161,449 @@ def _valid_namespace(namespace: str) -> bool:
     return tokens[0] == "" and all(_NAME_TOKEN.fullmatch(token) for token in tokens[1:])
 
 
-class _Interpreter:
-    """Pass 2: run the actions like launch does and draft the nodes."""
+def _condition_value(value: str) -> bool | None:
+    lowered = value.lower()
+    if lowered in ("true", "1"):
+        return True
+    if lowered in ("false", "0"):
+        return False
+    return None
 
-    def __init__(self, path: Path, launch_args: Mapping[str, str], env: Mapping[str, str], search_path: str):
-        self.path = path
+
+class _Interpreter:
+    """Run the actions like launch does and draft the processes."""
+
+    def __init__(self, launch_args: Mapping[str, str], env: Mapping[str, str], search_path: str):
         self.base_env = env
         self.search_path = search_path
         self.launch_args = dict(launch_args)
         self.arguments: dict[str, str] = {}
+        self.declared: dict[str, LaunchArgument] = {}
         self.drafts: list[_NodeDraft] = []
+        self.logs: list[str] = []
+        self.timers: list[_Timer] = []
+        self.now = 0.0
+        self.sequence = 0
+        self.including: list[Path] = []
+        self.read_cache: dict[Path, d.LaunchDescription] = {}  # a file included twice is read once
 
-    def error(self, message: str, line: int | None) -> LaunchFileError:
-        return LaunchFileError(message, Location(self.path, line))
-
-    def run(self, actions: list) -> list[_NodeDraft]:
-        # Launch arguments given on the command line are launch configurations even when the
-        # file does not declare them (as with `ros2 launch`).
-        scope = _Scope(dict(self.launch_args), {}, None)
+    def run(self, description: d.LaunchDescription) -> list[_NodeDraft]:
+        # `ros2 launch FILE a:=b` includes FILE with those arguments: they become launch
+        # configurations (also the undeclared ones), set before the file runs.
+        scope = _Scope(dict(self.launch_args), {}, set())
         self.arguments.update(self.launch_args)
-        self.execute(actions, scope)
+        self.include(description, scope, top=True)
+        # Timers fire after everything else has run, in the configurations and environment of
+        # the top of the launch at that time: a timer in a scoped group has lost the group's
+        # namespace and `let`s when it fires (launch keeps only its locals).  Kept, as in launch.
+        while self.timers:
+            self.timers.sort(key=lambda timer: (timer.due, timer.order))
+            timer = self.timers.pop(0)
+            self.now = timer.due
+            self.execute(timer.actions, scope, timer.file)
         return self.drafts
+
+    def include(self, description: d.LaunchDescription, scope: _Scope, top: bool = False) -> None:
+        path = description.path
+        self.including.append(path)
+        try:
+            self.execute(description.actions, scope, path, top)
+        finally:
+            self.including.pop()
 
     # -- substitutions --
 
-    def resolve(self, parts: _Parts, scope: _Scope, line: int | None) -> str:
-        return "".join(self.resolve_part(part, scope, line) for part in parts)
+    def resolve(self, parts: Text, scope: _Scope, where: Location, file: Path) -> str:
+        return "".join(self.resolve_part(part, scope, where, file) for part in parts)
 
-    def resolve_part(self, part: str | _Subst, scope: _Scope, line: int | None) -> str:
+    def resolve_part(self, part: str | Subst, scope: _Scope, where: Location, file: Path) -> str:
         if isinstance(part, str):
             return part
-        args = [self.resolve(arg, scope, line) for arg in part.args]
-        if part.kind == "var":
-            if args[0] not in scope.configurations:
-                raise self.error(f"launch configuration '{args[0]}' is not defined", line)
+        args = [self.resolve(arg, scope, where, file) for arg in part.args]
+        kind = part.kind
+        if kind == "var":
+            if args[0] not in scope.configurations or not isinstance(scope.configurations[args[0]], str):
+                raise LaunchFileError(f"launch configuration '{args[0]}' is not defined", where)
             return scope.configurations[args[0]]
-        if part.kind == "env":
+        if kind == "env":
             if args[0] in scope.env:
                 return scope.env[args[0]]
-            if args[0] in self.base_env:
+            if args[0] in self.base_env and args[0] not in scope.unset:
                 return self.base_env[args[0]]
             if len(args) == 2:
                 return args[1]
-            raise self.error(f"environment variable '{args[0]}' is not set", line)
-        if part.kind == "dirname":
-            return str(self.path.parent)
-        if part.kind == "find-pkg-share":
+            raise LaunchFileError(f"environment variable '{args[0]}' is not set", where)
+        if kind == "dirname":
+            return str(file.parent)
+        if kind == "filename":
+            return str(file)
+        if kind in ("find-pkg-share", "find-pkg-prefix", "exec-in-pkg"):
             try:
-                return str(ament.find_package_share(args[0], self.search_path))
+                if kind == "find-pkg-share":
+                    return str(ament.find_package_share(args[0], self.search_path))
+                if kind == "find-pkg-prefix":
+                    return str(ament.find_package_prefix(args[0], self.search_path))
+                return str(ament.find_executable(args[1], args[0], self.search_path))
             except FleetError as problem:
-                raise self.error(problem.message, line) from None
-        raise AssertionError(part.kind)  # the reader accepts only the kinds above
+                raise LaunchFileError(problem.message, where) from None
+        if kind in ("not", "and", "or"):
+            values = [self.truth_of(arg, where, f"'$({kind})'") for arg in args]
+            result = not values[0] if kind == "not" else all(values) if kind == "and" else any(values)
+            return "true" if result else "false"
+        if kind in ("equals", "not-equals"):
+            same = _equal(args[0], args[1] if len(args) == 2 else "")
+            return "true" if same == (kind == "equals") else "false"
+        raise AssertionError(kind)  # the reader accepts only the kinds above
 
-    def truth(self, parts: _Parts, scope: _Scope, line: int | None, what: str) -> bool:
-        value = self.resolve(parts, scope, line)
-        if value.lower() in ("true", "1"):
-            return True
-        if value.lower() in ("false", "0"):
-            return False
-        raise self.error(f"{what} must be true/false/1/0, got '{value}'", line)
+    def truth_of(self, value: str, where: Location, what: str) -> bool:
+        result = _condition_value(value)
+        if result is None:
+            raise LaunchFileError(f"{what} must be true/false/1/0, got '{value}'", where)
+        return result
+
+    def truth(self, parts: Text, scope: _Scope, where: Location, file: Path, what: str) -> bool:
+        return self.truth_of(self.resolve(parts, scope, where, file), where, what)
 
     # -- actions --
 
-    def execute(self, actions: list, scope: _Scope) -> None:
+    def execute(self, actions: list[d.Action], scope: _Scope, file: Path, top: bool = False) -> None:
         for action in actions:
             if action.condition is not None:
                 keyword = action.condition.keyword
-                holds = self.truth(action.condition.parts, scope, action.line, f"'{keyword}'")
+                holds = self.truth(action.condition.text, scope, action.where, file, f"'{keyword}'")
                 if holds != (keyword == "if"):
                     continue
-            self.execute_one(action, scope)
+            self.execute_one(action, scope, file, top)
 
-    def execute_one(self, action: _Action, scope: _Scope) -> None:
-        line = action.line
-        if isinstance(action, _Arg):
-            if action.name not in scope.configurations:
-                if action.default is None:
-                    raise self.error(
-                        f"launch argument '{action.name}' is required (no default); give it as {action.name}:=VALUE",
-                        line,
-                    )
-                scope.configurations[action.name] = self.resolve(action.default, scope, line)
-            self.arguments[action.name] = scope.configurations[action.name]
-        elif isinstance(action, _Let):
-            name = self.resolve(action.name, scope, line)
-            scope.configurations[name] = self.resolve(action.value, scope, line)
-        elif isinstance(action, _SetEnv):
-            scope.env[self.resolve(action.name, scope, line)] = self.resolve(action.value, scope, line)
-        elif isinstance(action, _PushNamespace):
-            pushed = self.resolve(action.namespace, scope, line)
-            namespace = _absolute(_prefix_namespace(scope.namespace, pushed))
-            if namespace is None or not _valid_namespace(namespace):  # never None: a namespace was pushed
-                raise self.error(f"invalid namespace '{namespace}' (pushed '{pushed}')", line)
-            scope.namespace = namespace
-        elif isinstance(action, _Group):
-            scoped = action.scoped
-            if not isinstance(scoped, bool):
-                scoped = self.truth(scoped, scope, line, "'scoped'")
-            self.execute(action.actions, scope.copy() if scoped else scope)
-        elif isinstance(action, _Node):
-            self.drafts.append(self.node(action, scope))
+    def execute_one(self, action: d.Action, scope: _Scope, file: Path, top: bool) -> None:
+        where = action.where
 
-    def node(self, node: _Node, scope: _Scope) -> _NodeDraft:
-        line = node.line
-        package = self.resolve(node.package, scope, line)
-        executable = self.resolve(node.executable, scope, line)
+        def text(parts: Text) -> str:
+            return self.resolve(parts, scope, where, file)
+
+        if isinstance(action, d.DeclareArgument):
+            self.declare(action, scope, file, top)
+        elif isinstance(action, d.SetConfiguration):
+            scope.configurations[text(action.name)] = text(action.value)
+        elif isinstance(action, d.SetEnv):
+            name = text(action.name)
+            scope.env[name] = text(action.value)
+            scope.unset.discard(name)
+        elif isinstance(action, d.UnsetEnv):
+            name = text(action.name)
+            scope.env.pop(name, None)
+            scope.unset.add(name)
+        elif isinstance(action, d.PushNamespace):
+            pushed = text(action.namespace)
+            previous = scope.configurations.get("ros_namespace")
+            previous = previous if isinstance(previous, str) else None
+            namespace = _absolute(_prefix_namespace(previous, pushed))
+            if namespace is None or not _valid_namespace(namespace):
+                raise LaunchFileError(f"invalid namespace '{namespace}' (pushed '{pushed}')", where)
+            scope.configurations["ros_namespace"] = namespace
+        elif isinstance(action, d.Group):
+            # A string `scoped` is taken for its truth as Python would (see the reader).
+            scoped = action.scoped if isinstance(action.scoped, bool) else bool(text(action.scoped))
+            inner = scope.copy() if scoped else scope
+            for kept, value in action.keep:
+                inner.configurations[text(kept)] = text(value)
+            self.execute(action.actions, inner, file)
+        elif isinstance(action, d.Include):
+            self.include_file(action, scope, file)
+        elif isinstance(action, d.Timer):
+            if isinstance(action.period, float):
+                period = action.period
+            else:
+                written_period = text(action.period)
+                try:
+                    period = float(written_period)
+                except ValueError:
+                    raise LaunchFileError(f"timer 'period' must be a number, got '{written_period}'", where) from None
+            self.sequence += 1
+            self.timers.append(_Timer(self.now + period, self.sequence, action.actions, file))
+        elif isinstance(action, d.Log):
+            self.logs.append(text(action.message))
+        elif isinstance(action, d.SetParameter):
+            name = text(action.name)
+            value = self.param_value(name, action.value, scope, where, file, typed=True)
+            # The list is changed in place: see _Scope.copy.
+            scope.configurations.setdefault("global_params", []).append((name, value))
+        elif isinstance(action, d.SetRemap):
+            scope.configurations.setdefault("ros_remaps", []).append((text(action.source), text(action.target)))
+        elif isinstance(action, d.Node):
+            self.drafts.append(self.node(action, scope, file))
+        elif isinstance(action, d.Executable):
+            self.drafts.append(self.executable(action, scope, file))
+        else:
+            raise AssertionError(action)
+
+    def declare(self, action: d.DeclareArgument, scope: _Scope, file: Path, top: bool) -> None:
+        if top:
+            default = None if action.default is None else _written(action.default)
+            self.declared.setdefault(
+                action.name, LaunchArgument(action.name, default, action.description, action.choices)
+            )
+        if action.name not in scope.configurations:
+            if action.default is None:
+                raise LaunchFileError(
+                    f"launch argument '{action.name}' is required (no default); give it as {action.name}:=VALUE",
+                    action.where,
+                )
+            scope.configurations[action.name] = self.resolve(action.default, scope, action.where, file)
+        value = scope.configurations[action.name]
+        if action.choices is not None and value not in action.choices:
+            raise LaunchFileError(
+                f"argument '{action.name}' is '{value}', not one of its choices ({', '.join(action.choices)})",
+                action.where,
+            )
+        if top:
+            self.arguments[action.name] = value
+
+    def include_file(self, action: d.Include, scope: _Scope, file: Path) -> None:
+        where = action.where
+        target = Path(self.resolve(action.file, scope, where, file))
+        if not target.is_absolute():
+            target = Path.cwd() / target
+        if target in self.including:
+            chain = " -> ".join(path.name for path in [*self.including, target])
+            raise LaunchFileError(f"include cycle: {chain}", where)
+        if not target.is_file():
+            raise LaunchFileError(f"included launch file '{target}' not found", where)
+        included = self.read_cache.get(target)
+        if included is None:
+            try:
+                included = self.read_cache[target] = read_launch_file(target)
+            except LaunchFileError as problem:
+                if "Python launch file" in problem.message:  # said where the include is
+                    raise LaunchFileError(problem.message, where) from None
+                raise
+        given = []
+        for name, value in action.arguments:
+            given.append(self.resolve(name, scope, where, file))
+            # Include arguments are set in the including scope (launch does not scope an
+            # include): they stay defined after it.
+            scope.configurations[given[-1]] = self.resolve(value, scope, where, file)
+        for argument in _required_arguments(included.actions):
+            if argument.name not in given:
+                raise LaunchFileError(
+                    f"included file {target.name} needs argument '{argument.name}' (give it with arg: name/value)",
+                    where,
+                )
+        self.include(included, scope)
+
+    def process_env(self, env: list[tuple[Text, Text]], scope: _Scope, where: Location, file: Path) -> dict[str, str]:
+        result = dict(scope.env)
+        for name, value in env:
+            result[self.resolve(name, scope, where, file)] = self.resolve(value, scope, where, file)
+        return result
+
+    def process_common(self, action: d.Process, scope: _Scope, file: Path) -> dict[str, Any]:
+        where = action.where
+        output = "log" if action.output is None else self.resolve(action.output, scope, where, file)
+        if output not in ("screen", "log", "both"):
+            raise LaunchFileError(f"'output' must be screen, log or both, got '{output}'", where)
+        respawn = False if action.respawn is None else self.truth(action.respawn, scope, where, file, "'respawn'")
+        env = self.process_env(action.env, scope, where, file)
+        unset = tuple(sorted(name for name in scope.unset if name not in env))
+        return {
+            "env": env,
+            "env_unset": unset,
+            "respawn": respawn,
+            "respawn_delay": action.respawn_delay,
+            "output": output,
+            "location": where,
+            "delay": self.now,
+        }
+
+    def executable(self, action: d.Executable, scope: _Scope, file: Path) -> _NodeDraft:
+        where = action.where
+        cmd = self.command_line(action.cmd, scope, where, file)
+        if not cmd:
+            raise LaunchFileError("'cmd' of 'executable' is empty", where)
+        name = None if action.name is None else self.resolve(action.name, scope, where, file)
+        cwd = None if action.cwd is None else self.resolve(action.cwd, scope, where, file)
+        launch = NodeLaunch(
+            name=None,
+            namespace=None,
+            package="",
+            executable=os.path.basename(cmd[0]),
+            cmd=cmd,
+            cwd=cwd,
+            **self.process_common(action, scope, file),
+        )
+        self.sequence += 1
+        return _NodeDraft(launch, None, [], None, [], [], self.sequence, name or os.path.basename(cmd[0]))
+
+    def node(self, node: d.Node, scope: _Scope, file: Path) -> _NodeDraft:
+        where = node.where
+
+        def text(parts: Text) -> str:
+            return self.resolve(parts, scope, where, file)
+
+        package = text(node.package)
+        executable = text(node.executable)
         try:
             executable_path = ament.find_executable(package, executable, self.search_path)
         except FleetError as problem:
-            raise self.error(problem.message, line) from None
-        name = None if node.name is None else self.resolve(node.name, scope, line)
+            raise LaunchFileError(problem.message, where) from None
+        name = None if node.name is None else text(node.name)
         if name is not None and not _NAME_TOKEN.fullmatch(name):
-            raise self.error(
-                f"invalid node name '{name}' (letters, digits and underscores, not starting with a digit)",
-                line,
+            raise LaunchFileError(
+                f"invalid node name '{name}' (letters, digits and underscores, not starting with a digit)", where
             )
-        own_namespace = None if node.namespace is None else self.resolve(node.namespace, scope, line)
-        namespace = _absolute(_prefix_namespace(scope.namespace, own_namespace))
+        own_namespace = None if node.namespace is None else text(node.namespace)
+        base = scope.configurations.get("ros_namespace")
+        namespace = _absolute(_prefix_namespace(base if isinstance(base, str) else None, own_namespace))
         if namespace is not None and not _valid_namespace(namespace):
-            raise self.error(f"invalid namespace '{namespace}' for node '{name}'", line)
-        output = "log" if node.output is None else self.resolve(node.output, scope, line)
-        if output not in ("screen", "log", "both"):
-            raise self.error(f"'output' must be screen, log or both, got '{output}'", line)
-        respawn = False if node.respawn is None else self.truth(node.respawn, scope, line, "'respawn'")
+            raise LaunchFileError(f"invalid namespace '{namespace}' for node '{name}'", where)
         launch = NodeLaunch(
             name=name,
             namespace=namespace,
             package=package,
             executable=executable,
             cmd=[],
-            env=dict(scope.env),
-            respawn=respawn,
-            respawn_delay=node.respawn_delay,
-            output=output,
-            location=Location(self.path, line),
+            **self.process_common(node, scope, file),
         )
         # launch_ros keys inline parameters by the full node name only when both name and
         # namespace are known; otherwise by the wildcard.
         key = launch.fqn if name is not None and namespace is not None else "/**"
         params: list[tuple[Any, ...]] = []
+        # set_parameter's parameters come first, as `-p name:=value` rules.
+        for param_name, value in scope.configurations.get("global_params", []):
+            params.append(("rule", f"{param_name}:={_rule_value(value)}"))
         for param in node.params:
-            if isinstance(param, _ParamFile):
-                file = self.resolve(param.path, scope, param.line)
-                if not os.path.isfile(file):
-                    raise self.error(f"parameter file '{file}' not found", param.line)
-                params.append(("file", file))
+            if isinstance(param, d.ParamFile):
+                path = self.resolve(param.path, scope, param.where, file)
+                if not os.path.isfile(path):
+                    raise LaunchFileError(f"parameter file '{path}' not found", param.where)
+                params.append(("file", os.path.abspath(path)))
             else:
-                param_name = self.resolve(param.name, scope, param.line)
-                value = self.param_value(param_name, param.value, scope, param.line)
-                params.append(("inline", key, {param_name: value}))
-        remaps = [
-            (self.resolve(source, scope, line), self.resolve(target, scope, line)) for source, target in node.remaps
-        ]
+                params.append(("inline", key, self.inline_param(param, scope, file)))
+        remaps = list(scope.configurations.get("ros_remaps", []))
+        remaps += [(text(source), text(target)) for source, target in node.remaps]
+        exec_name = None if node.exec_name is None else text(node.exec_name)
+        self.sequence += 1
         return _NodeDraft(
             launch=launch,
             executable_path=executable_path,
-            arguments=self.command_line(node.args, scope, line) if node.args is not None else [],
-            ros_arguments=None if node.ros_args is None else self.command_line(node.ros_args, scope, line),
+            arguments=self.command_line(node.args, scope, where, file) if node.args is not None else [],
+            ros_arguments=None if node.ros_args is None else self.command_line(node.ros_args, scope, where, file),
             params=params,
             remaps=remaps,
+            order=self.sequence,
+            process_base=exec_name or executable_path.name,
         )
 
-    def param_value(self, name: str, value: Any, scope: _Scope, line: int | None) -> Any:
-        """Type a parameter value like launch_ros: substituted strings are read as YAML."""
+    def inline_param(self, param: d.InlineParam, scope: _Scope, file: Path) -> dict[str, Any]:
+        name = self.resolve(param.name, scope, param.where, file)
+        if param.nested:
+            result: dict[str, Any] = {}
+            for child in param.value:
+                for child_name, value in self.inline_param(child, scope, file).items():
+                    result[f"{name}.{child_name}"] = value  # launch_ros flattens nested parameters
+            return result
+        return {name: self.param_value(name, param.value, scope, param.where, file)}
+
+    def param_value(
+        self, name: str, value: Any, scope: _Scope, where: Location, file: Path, typed: bool = False
+    ) -> Any:
+        """Type a parameter value like launch_ros: text holding a substitution is read as YAML
+        once substituted; text without one stays a string (`value: 'true'` is the string
+        "true" to launch_ros, not a bool); YAML scalars keep the type the file gave them."""
         if isinstance(value, list):
-            items = [self.param_value(name, item, scope, line) for item in value]
+            items = [self.param_value(name, item, scope, where, file) for item in value]
             kinds = {type(item) for item in items}
             if len(kinds) != 1 or isinstance(items[0], list):
-                raise self.error(
-                    f"parameter '{name}': list items must all have one type (bool, int, float "
-                    f"or string), got {items!r}",
-                    line,
+                raise LaunchFileError(
+                    f"parameter '{name}': list items must all have one type (bool, int, float or string), "
+                    f"got {items!r}",
+                    where,
                 )
             return items
         if not isinstance(value, tuple):
             return value  # a YAML scalar, already typed
-        text = self.resolve(value, scope, line)
+        text = self.resolve(value, scope, where, file)
+        if not typed and all(isinstance(part, str) for part in value):
+            return text
         if text == "":
             return ""
         try:
             typed = yaml.safe_load(text)
         except yaml.YAMLError:
-            raise self.error(f"parameter '{name}': value '{text}' is not valid YAML", line) from None
+            raise LaunchFileError(f"parameter '{name}': value '{text}' is not valid YAML", where) from None
         if isinstance(typed, (bool, int, float, str)):
             return typed
         if isinstance(typed, list) and typed:
-            return self.param_value(name, typed, scope, line)
-        raise self.error(
-            f"parameter '{name}': value '{text}' is not a bool, int, float, string or list",
-            line,
-        )
+            return self.param_value(name, typed, scope, where, file)
+        raise LaunchFileError(f"parameter '{name}': value '{text}' is not a bool, int, float, string or list", where)
 
-    def command_line(self, parts: _Parts, scope: _Scope, line: int | None) -> list[str]:
-        """Split like launch: literal text on (shell-quoted) whitespace; a substitution's value
-        stays one piece, glued to the text it touches."""
-        arguments: list[str] = []
-        current: str | None = None
+    def command_line(self, parts: Text, scope: _Scope, where: Location, file: Path) -> list[str]:
+        """Split as launch's ExecuteProcess._parse_cmdline does: literal text on (shell-quoted)
+        whitespace, a substitution's value one piece glued to the text it touches.  Its quirks
+        are kept: text of only whitespace ends the argument being built even when there is none,
+        so `args: '   '` passes one empty argument, and so does `$(var a)  $(var b)`."""
+        arguments: list[list[str]] = []
+        current: list[str] = []
+
+        def end() -> None:
+            nonlocal current
+            arguments.append(current)
+            current = []
+
         for part in parts:
-            if isinstance(part, _Subst):
-                current = (current or "") + self.resolve_part(part, scope, line)
+            if isinstance(part, Subst):
+                current.append(self.resolve_part(part, scope, where, file))
                 continue
             try:
                 tokens = shlex.split(part)
             except ValueError as problem:
-                raise self.error(f"cannot split '{part}': {problem}", line) from None
+                raise LaunchFileError(f"cannot split '{part}': {problem}", where) from None
             if not tokens:
-                if current is not None:
-                    arguments.append(current)
-                current = None
+                end()
                 continue
-            if part[0].isspace() and current is not None:
-                arguments.append(current)
-                current = None
-            first, *rest = tokens
-            current = (current or "") + first
-            for token in rest:
-                arguments.append(current)
-                current = token
+            if part[0].isspace() and current:
+                end()
+            current.append(tokens[0])
+            if len(tokens) > 1:
+                end()
+                current.append(tokens[-1])
+            if len(tokens) > 2:
+                arguments.extend([token] for token in tokens[1:-1])
             if part[-1].isspace():
-                arguments.append(current)
-                current = None
-        if current is not None:
+                end()
+        if current:
             arguments.append(current)
-        return arguments
+        return ["".join(argument) for argument in arguments]
+
+
+def _equal(left: str, right: str) -> bool:
+    """launch's EqualsSubstitution: compared as bools, then numbers, then text."""
+    left_truth, right_truth = _condition_value(left), _condition_value(right)
+    if left_truth is not None and right_truth is not None:
+        return left_truth == right_truth
+    try:
+        return float(left) == float(right)
+    except ValueError:
+        return left == right
+
+
+def _rule_value(value: Any) -> str:
+    # launch_ros writes `-p name:=<value>` with the Python value as text.
+    return str(value)
+
+
+def _required_arguments(actions: list[d.Action]) -> list[d.DeclareArgument]:
+    """The arguments an include must give: declared without default and not under a condition
+    (launch's best-effort check looks into groups, not into timers or includes)."""
+    found = []
+    for action in actions:
+        if action.condition is not None:
+            continue
+        if isinstance(action, d.DeclareArgument) and action.default is None:
+            found.append(action)
+        elif isinstance(action, d.Group):
+            found += _required_arguments(action.actions)
+    return found
 
 
 # ---------------------------------------------------------------------------------------------
@@ -778,14 +612,16 @@ class _Interpreter:
 
 def _write_inline_params(key: str, params: dict, directory: str | None) -> str:
     with tempfile.NamedTemporaryFile("w", prefix="launch_params_", dir=directory, delete=False) as handle:
-        yaml.safe_dump({key: {"ros__parameters": params}}, handle, default_flow_style=False)
+        yaml.safe_dump({key: {"ros__parameters": params}}, handle, default_flow_style=False, allow_unicode=True)
         return handle.name
 
 
 def _command(draft: _NodeDraft, params_dir: str | None) -> list[str]:
-    """`<exe> [args] [--ros-args <ros_args>] --ros-args -r __node:= -r __ns:= --params-file ...
+    """`<exe> [args] [--ros-args <ros_args>] --ros-args -r __node:= -r __ns:= -p ... --params-file ...
     -r from:=to ...`, in launch_ros's order."""
     launch = draft.launch
+    if draft.executable_path is None:
+        return list(launch.cmd)
     cmd = [str(draft.executable_path), *draft.arguments]
     if draft.ros_arguments is not None:
         cmd += ["--ros-args", *draft.ros_arguments]
@@ -797,6 +633,8 @@ def _command(draft: _NodeDraft, params_dir: str | None) -> list[str]:
     for param in draft.params:
         if param[0] == "file":
             cmd += ["--params-file", param[1]]
+        elif param[0] == "rule":
+            cmd += ["-p", param[1]]
         else:
             cmd += ["--params-file", _write_inline_params(param[1], param[2], params_dir)]
     for source, target in draft.remaps:
@@ -804,13 +642,28 @@ def _command(draft: _NodeDraft, params_dir: str | None) -> list[str]:
     return cmd
 
 
-def _process_names(nodes: list[NodeLaunch]) -> None:
-    """launch names each process `<executable>-<n>`, counting per executable name."""
-    counts: dict[str, int] = {}
-    for node in nodes:
-        base = os.path.basename(node.cmd[0])
-        counts[base] = counts.get(base, 0) + 1
-        node.process_name = f"{base}-{counts[base]}"
+def _process_names(drafts: list[_NodeDraft]) -> list[NodeLaunch]:
+    """launch names each process `<executable>-<n>` with ONE counter for the whole launch,
+    counting in the order processes start (timers last); the processes in that order."""
+    ordered = sorted(drafts, key=lambda draft: (draft.launch.delay, draft.order))
+    for number, draft in enumerate(ordered, start=1):
+        draft.launch.process_name = f"{draft.process_base}-{number}"
+    return [draft.launch for draft in ordered]
+
+
+def _interpret(
+    path: Path, launch_args: Mapping[str, str], env: Mapping[str, str] | None, search_path: str | None
+) -> _Interpreter:
+    environment = dict(os.environ if env is None else env)
+    if search_path is None:
+        search_path = ament.ament_prefix_path(environment)
+    for name in launch_args:
+        if not _SUBSTITUTION_NAME.fullmatch(name):
+            raise LaunchFileError(f"invalid launch argument name '{name}'", Location(path))
+    description = read_launch_file(path)
+    interpreter = _Interpreter(launch_args, environment, search_path)
+    interpreter.run(description)
+    return interpreter
 
 
 def check_launch_file(
@@ -819,14 +672,20 @@ def check_launch_file(
     env: Mapping[str, str] | None = None,
     ament_search_path: str | None = None,
 ) -> dict[str, str]:
-    """Both passes, no side effect: raise LaunchFileError for anything we cannot run; return
-    the launch arguments and their values."""
-    path = Path(path).absolute()
-    env = dict(os.environ if env is None else env)
-    if ament_search_path is None:
-        ament_search_path = ament.ament_prefix_path(env)
-    _, arguments = _parse(path, launch_args or {}, env, ament_search_path)
-    return arguments
+    """Read and run the file without side effects: raise LaunchFileError for anything we cannot
+    run; return the launch arguments and their values."""
+    return _interpret(Path(path).absolute(), launch_args or {}, env, ament_search_path).arguments
+
+
+def declared_arguments(path: Path) -> list[LaunchArgument]:
+    """The launch arguments the file declares at its top (as `ros2 launch --show-args`)."""
+    description = read_launch_file(Path(path).absolute())
+    found: dict[str, LaunchArgument] = {}
+    for action in description.actions:
+        if isinstance(action, d.DeclareArgument) and action.name not in found:
+            default = None if action.default is None else _written(action.default)
+            found[action.name] = LaunchArgument(action.name, default, action.description, action.choices)
+    return list(found.values())
 
 
 def load_launch_file(
@@ -836,43 +695,14 @@ def load_launch_file(
     params_dir: str | Path | None = None,
     ament_search_path: str | None = None,
 ) -> LaunchPlan:
-    """Read and check the whole file, then write inline parameter files (into `params_dir`,
+    """Read and run the whole file, then write inline parameter files (into `params_dir`,
     default the system temp directory like launch_ros) and build the command lines."""
     path = Path(path).absolute()
-    env = dict(os.environ if env is None else env)
-    if ament_search_path is None:
-        ament_search_path = ament.ament_prefix_path(env)
-    drafts, arguments = _parse(path, launch_args or {}, env, ament_search_path)
+    interpreter = _interpret(path, launch_args or {}, env, ament_search_path)
     directory = None if params_dir is None else str(params_dir)
     if directory is not None:
         os.makedirs(directory, exist_ok=True)
-    nodes = []
-    for draft in drafts:
+    for draft in interpreter.drafts:
         draft.launch.cmd = _command(draft, directory)
-        nodes.append(draft.launch)
-    _process_names(nodes)
-    return LaunchPlan(path=path, arguments=arguments, nodes=nodes)
-
-
-def _parse(
-    path: Path, launch_args: Mapping[str, str], env: Mapping[str, str], search_path: str
-) -> tuple[list[_NodeDraft], dict[str, str]]:
-    if not path.name.endswith((".yaml", ".yml")):
-        raise LaunchFileError(
-            "the embedded runner reads YAML launch files (.launch.yaml) only; run other "
-            "launch files with `ros2 launch` (--backend ros2)",
-            Location(path),
-        )
-    from fleet.spec.yaml_source import read_input
-
-    try:
-        text = read_input(path, "launch")
-    except SpecError as problem:
-        raise LaunchFileError(f"cannot read launch file: {problem.message}", problem.location) from None
-    for name in launch_args:
-        if not _NAME_TOKEN.fullmatch(name):
-            raise LaunchFileError(f"invalid launch argument name '{name}'", Location(path))
-    actions = _Reader(path).read(text)
-    interpreter = _Interpreter(path, launch_args, env, search_path)
-    drafts = interpreter.run(actions)
-    return drafts, interpreter.arguments
+    nodes = _process_names(interpreter.drafts)
+    return LaunchPlan(path=path, arguments=interpreter.arguments, nodes=nodes, logs=interpreter.logs)

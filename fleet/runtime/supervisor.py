@@ -241,8 +241,8 @@ class LaunchSession:
     def _ros2(self) -> str | None:
         return shutil.which("ros2", path=self.base_env.get("PATH", os.defpath))
 
-    def _child_env(self, extra: Mapping[str, str]) -> dict[str, str]:
-        env = dict(self.base_env)
+    def _child_env(self, extra: Mapping[str, str], unset: tuple[str, ...] = ()) -> dict[str, str]:
+        env = {name: value for name, value in self.base_env.items() if name not in unset}
         env["AMENT_PREFIX_PATH"] = ament.ament_prefix_path(self.base_env)
         env.setdefault("PYTHONUNBUFFERED", "1")  # node output reaches the log line by line
         # rcl also writes each node's log to a file of its own: keep those with the session's
@@ -305,8 +305,12 @@ class LaunchSession:
 
     def _run(self) -> None:
         try:
+            began = time.monotonic()
             for process in self._processes:
-                self._spawn(process)
+                if process.spec.delay > 0.0:  # a timer's: started by _check when due
+                    process.restart_at = began + process.spec.delay
+                else:
+                    self._spawn(process)
         except BaseException as problem:  # e.g. a missing interpreter: stop what started
             self._start_error = FleetError(f"cannot start {process.spec.name}: {problem}")
             self._stop_requested = True
@@ -356,8 +360,8 @@ class LaunchSession:
 
     def _spawn(self, process: _Supervised) -> None:
         spec = process.spec
-        env = self._child_env(spec.env)
-        popen = spawn(spec.cmd, env)
+        env = self._child_env(spec.env, spec.env_unset)
+        popen = spawn(spec.cmd, env, cwd=spec.cwd)
         with self._lock:
             process.popen = popen
             process.state = RUNNING
@@ -387,6 +391,11 @@ class LaunchSession:
             process.restart_at = now + backoff_delay(process.spec.respawn_delay, process.failures_in_row)
         elif process.state == RUNNING and self._stop_requested:
             process.state = STOPPING
+        elif process.state == STARTING and process.restart_at is not None:  # a timer's, not started yet
+            if self._stop_requested:
+                process.state = STOPPED
+            elif now >= process.restart_at:
+                return True
         elif process.state == BACKOFF:
             if self._stop_requested:
                 process.state = STOPPED

@@ -139,12 +139,13 @@ def test_robot_isolation_keeps_other_nodes_alone(prefix, tmp_path):
     )
     plan = load_launch_file(extra, env=prefix.env(), params_dir=tmp_path / "params")
     specs = plan_processes(plan.nodes, "robot")
-    assert [spec.name for spec in specs] == ["talker-1", "composite-1", "world-1", "safety-1"]
+    # Process names count with one counter for the whole launch, as launch does (issue 11).
+    assert [spec.name for spec in specs] == ["talker-1", "composite-1", "world-3", "safety-5"]
     assert [node.name for node in specs[1].nodes] == ["c1", "b1"]
     assert [spec.name for spec in plan_processes(plan.nodes, "process")] == [
         "talker-1",
-        "controller-1",
-        "world-1",
-        "battery-1",
-        "safety-1",
+        "controller-2",
+        "world-3",
+        "battery-4",
+        "safety-5",
     ]

@@ -40,7 +40,10 @@ def test_agent_isolation_leaves_composable_nodes_to_the_host(prefix, tmp_path):
     )
     plan = load_launch_file(extra, env=prefix.env(), params_dir=tmp_path / "params")
     # The host takes the controller; the talker and the safety node with a plain argument run alone.
-    assert [spec.name for spec in plan_processes(plan.nodes, "agent")] == ["talker-1", "safety-1"]
+    assert [spec.name for spec in plan_processes(plan.nodes, "agent")] == [
+        "talker-1",
+        "safety-3",
+    ]  # one counter (issue 11)
 
 
 def test_add_request_carries_each_nodes_own_arguments(prefix, tmp_path):

@@ -175,13 +175,15 @@ def test_inline_param_values_are_typed_like_launch_ros(load):
         values.update(content["/n/t"]["ros__parameters"])
     assert values == {
         "from_var": True,
-        "int_text": 3,
+        # Quoted text without a substitution stays a string under launch_ros (recorded in
+        # tests/conformance/expected/19_param_quoted_values.launch.yaml.json).
+        "int_text": "3",
         "float": 0.5,
         "bool": False,
         "text": "hello",
         "empty": "",
         "list": [1.0, 2.0],
-        "list_text": [1, 2],
+        "list_text": "[1, 2]",
         "strings": ["a", "b"],
         "dotted.name": 1,
     }
@@ -194,7 +196,9 @@ def test_process_names_count_per_executable(load):
         - node: {pkg: demo, exec: listener, name: b}
         - node: {pkg: demo, exec: talker, name: c}
     """)
-    assert [node.process_name for node in plan.nodes] == ["talker-1", "listener-1", "talker-2"]
+    # One counter for the whole launch, as launch numbers its processes (issue 11; recorded in
+    # tests/conformance/expected/42_process_name_counter.launch.yaml.json).
+    assert [node.process_name for node in plan.nodes] == ["talker-1", "listener-2", "talker-3"]
 
 
 # -- namespaces -----------------------------------------------------------------------------
@@ -426,20 +430,20 @@ def test_undefined_var(load):
 @pytest.mark.parametrize(
     ("text", "fragments", "line"),
     [
-        ("launch:\n- include: {file: x.launch.yaml}\n", ["unknown action 'include'"], 2),
-        ("launch:\n- executable: {cmd: ls}\n", ["unknown action 'executable'"], 2),
+        ("launch:\n- include: {file: x.launch.yaml}\n", ["included launch file", "not found"], 2),
+        ("launch:\n- shutdown: {}\n", ["action 'shutdown' needs the ros2 backend"], 2),
         (
             "launch:\n- node: {pkg: demo, exec: talker, launch-prefix: gdb}\n",
-            ["unknown key 'launch-prefix' in action 'node'"],
+            ["attribute 'launch-prefix' of 'node' needs the ros2 backend"],
             2,
         ),
         (
-            "launch:\n- node:\n    pkg: demo\n    exec: talker\n    env: [{name: a, value: b}]\n",
-            ["unknown key 'env'"],
+            "launch:\n- node:\n    pkg: demo\n    exec: talker\n    bogus: [{name: a, value: b}]\n",
+            ["unknown key 'bogus'"],
             5,
         ),
-        ("launch:\n- arg: {name: a, choice: [{value: x}]}\n", ["unknown key 'choice'"], 2),
-        ("launch:\n- let: {name: a, value: $(command ls)}\n", ["unknown substitution '$(command)'"], 2),
+        ("launch:\n- arg: {name: a, choice: [{value: x}]}\n", ["argument 'a' is required"], 2),
+        ("launch:\n- let: {name: a, value: $(command ls)}\n", ["'$(command)' is not run by the embedded runner"], 2),
         ("launch:\n- let: {name: a, value: $(var)}\n", ["'$(var)' takes 1..1 arguments"], 2),
         ("launch:\n- let: {name: a, value: '$(var a'}\n", ["unterminated"], 2),
         ("launch:\n- node: {exec: talker}\n", ["action 'node' needs 'pkg'"], 2),
@@ -466,13 +470,14 @@ def test_undefined_var(load):
             2,
         ),
         (
-            "launch:\n- node: {pkg: demo, exec: talker, param: [{name: a, value: '{b: 1}'}]}\n",
+            "launch:\n- let: {name: v, value: '{b: 1}'}\n"
+            "- node: {pkg: demo, exec: talker, param: [{name: a, value: $(var v)}]}\n",
             ["is not a bool, int, float, string or list"],
-            2,
+            3,
         ),
-        ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: a}]}\n", ["'remap' item"], 2),
+        ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: a}]}\n", ["needs 'to'"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: x}\n", ["list of mappings"], 2),
-        ("launch:\n- group: {scoped: 'maybe', children: []}\n", ["'scoped' must be"], 2),
+        ("launch:\n- group: {scoped: 3, children: []}\n", ["'scoped' of 'group' must be true or false"], 2),
         ("launch:\n- group: {scoped: false}\n", ["needs a list of actions"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker}\n  other: 1\n", ["exactly one key"], 2),
         ("launch:\n- push_ros_namespace: robot1\n", ["needs a mapping"], 2),
@@ -493,9 +498,9 @@ def test_refusal_in_a_skipped_branch_still_refused(load):
         - group:
             if: 'false'
             children:
-            - timer: {period: 1.0}
+            - shutdown: {reason: x}
     """,
-        "unknown action 'timer'",
+        "action 'shutdown' needs the ros2 backend",
         line=5,
     )
 
@@ -503,7 +508,7 @@ def test_refusal_in_a_skipped_branch_still_refused(load):
 def test_non_yaml_launch_file_refused(demo, tmp_path):
     path = tmp_path / "robot.launch.py"
     path.write_text("def generate_launch_description(): ...\n")
-    with pytest.raises(LaunchFileError, match="YAML launch files"):
+    with pytest.raises(LaunchFileError, match="Python launch file runs only under `ros2 launch`"):
         load_launch_file(path, env=demo.env())
 
 

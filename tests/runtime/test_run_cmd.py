@@ -30,7 +30,7 @@ def test_bad_file_is_one_line_and_exit_2(prefix, write_launch, tmp_path):
     assert runner.returncode == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
-    assert lines[0].startswith(f"fleet: error: {path}:3: unknown action 'teleport'")
+    assert lines[0].startswith(f"fleet: error: {path}:3:3: unknown action 'teleport'")
     assert out == ""
 
 
@@ -95,3 +95,47 @@ def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
     finally:
         runner.kill()
         runner.communicate()
+
+
+def test_show_args_and_print_like_ros2_launch(prefix, write_launch, tmp_path):
+    path = write_launch("""
+        launch:
+        - arg: {name: robot, default: r1, description: The robot}
+        - arg: {name: mode, default: slow, choice: [{value: slow}, {value: fast}]}
+        - arg: {name: needed}
+        - group:
+          - push_ros_namespace: {namespace: $(var robot)}
+          - node: {pkg: demo, exec: nowhere, name: n}
+    """)
+    runner = fleet_run(prefix, path, "--show-args")
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 0, err
+    assert out == (
+        "Arguments (pass arguments as '<name>:=<value>'):\n\n"
+        "    'robot':\n        The robot\n        (default: 'r1')\n\n"
+        "    'mode':\n        One of: ['slow', 'fast']\n        (default: 'slow')\n\n"
+        "    'needed':\n        no description given\n"
+    )
+    runner = fleet_run(prefix, path, "-p")  # starts nothing: the missing executable is not looked up
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 0, err
+    assert "└── GroupAction(scoped=True)" in out and "Node(package='demo', executable='nowhere', name='n')" in out
+
+
+def test_log_actions_are_printed(prefix, write_launch, tmp_path):
+    prefix.add("hello", "#!/bin/sh\nexit 0\n")
+    path = write_launch("launch:\n- log: {message: hello $(var who)}\n- node: {pkg: demo, exec: hello}\n")
+    runner = fleet_run(prefix, path, "who:=you", "--log-dir", tmp_path / "logs")
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 0, err
+    assert out == "[INFO] [launch.user]: hello you\n"
+
+
+def test_empty_launch_argument_is_malformed_as_in_ros2_launch(prefix, write_launch, tmp_path):
+    path = write_launch("launch: []\n")
+    runner = fleet_run(prefix, path, "robot:=", "--log-dir", tmp_path / "logs")
+    _, err = runner.communicate(timeout=60)
+    assert runner.returncode == 2
+    assert err == "fleet: error: robot:=: launch arguments are name:=value\n"
+    runner = fleet_run(prefix, path, "url:=a:=b", "--log-dir", tmp_path / "logs")  # ros2 launch takes this one
+    assert runner.wait(timeout=60) == 0

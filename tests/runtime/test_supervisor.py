@@ -382,11 +382,11 @@ def test_auto_with_robot_isolation_uses_embedded(prefix, write_launch, tmp_path,
 
 
 def test_without_ros2_unsupported_files_are_refused_clearly(prefix, write_launch, tmp_path):
-    path = write_launch("launch: [{include: {file: other.launch.yaml}}]\n")
+    path = write_launch("launch: [{shutdown: {}}]\n")
     env = prefix.env(PATH="/usr/bin:/bin")
     with pytest.raises(LaunchFileError) as caught:
         LaunchSession(path, env=env, log_dir=tmp_path / "logs").start()
-    assert "unknown action 'include'" in str(caught.value)
+    assert "action 'shutdown' needs the ros2 backend" in str(caught.value)
     assert "`ros2` is not on PATH" in str(caught.value)
     with pytest.raises(FleetError, match="needs the `ros2` command"):
         LaunchSession(path, env=env, backend="ros2").start()
