@@ -383,6 +383,8 @@ class LaunchSession:
             # The node is gone; whatever it left in its group goes too.
             signal_group(popen.pid, signal.SIGKILL)
             if not process.spec.respawn:
+                if process.pump is not None:  # its last lines are read before it is declared done
+                    process.pump.join(timeout=0.5)
                 process.state = EXITED if process.exit_code == 0 else FAILED
                 return False
             ran_for = now - process.started_at
