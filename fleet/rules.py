@@ -13,7 +13,7 @@ from pathlib import Path
 
 # ROS 2 name tokens (rmw_validate_node_name / namespace tokens): letters, digits, underscores,
 # not starting with a digit.
-_ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # one part of a ROS name (any length)
 # Zenoh key chunks must not contain / * $ ? # and we keep them boring on purpose.
 _KEY_CHUNK = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 MAX_NAME_LENGTH = 63
@@ -127,7 +127,7 @@ def ros_name_problem(name: object) -> str | None:
         return "must not be empty"
     if len(name) > MAX_NAME_LENGTH:
         return f"is longer than {MAX_NAME_LENGTH} characters"
-    if not _ROS_TOKEN.fullmatch(name):
+    if not ROS_TOKEN.fullmatch(name):
         if name[0].isdigit():
             return f"{name!r} is not a valid ROS name: it must not start with a digit"
         return f"{name!r} is not a valid ROS name: use letters, digits and underscores only"

@@ -31,6 +31,7 @@ from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
 from fleet.launchfile.substitutions import written as _written
 
 __all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
+from fleet.rules import ROS_TOKEN
 from fleet.runtime import ament
 
 # ---------------------------------------------------------------------------------------------
@@ -130,7 +131,6 @@ class _Timer:
     file: Path
 
 
-_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _SUBSTITUTION_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -158,7 +158,7 @@ def _valid_namespace(namespace: str) -> bool:
     if namespace == "/":
         return True
     tokens = namespace.split("/")
-    return tokens[0] == "" and all(_NAME_TOKEN.fullmatch(token) for token in tokens[1:])
+    return tokens[0] == "" and all(ROS_TOKEN.fullmatch(token) for token in tokens[1:])
 
 
 def _condition_value(value: str) -> bool | None:
@@ -447,7 +447,7 @@ class _Interpreter:
         except FleetError as problem:
             raise LaunchFileError(problem.message, where) from None
         name = None if node.name is None else text(node.name)
-        if name is not None and not _NAME_TOKEN.fullmatch(name):
+        if name is not None and not ROS_TOKEN.fullmatch(name):
             raise LaunchFileError(
                 f"invalid node name '{name}' (letters, digits and underscores, not starting with a digit)", where
             )

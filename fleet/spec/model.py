@@ -6,6 +6,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
+from fleet.rules import LOCAL_AGENT
 from fleet.spec.yaml_source import SourceMap
 
 
@@ -141,7 +142,7 @@ Isolation = Literal["process", "robot", "agent"]
 
 class Defaults(Strict):
     template: str = "diff_drive"
-    agent: str = "local"
+    agent: str = LOCAL_AGENT
     isolation: Isolation = "process"
     group_size: int = Field(DEFAULT_GROUP_SIZE, ge=1)  # robots per host process (isolation: agent)
     model: Model = Model()
@@ -170,7 +171,7 @@ class FleetSpec(Strict):
     templates: str | None = None  # directory of the robot's templates, relative to the spec file
     ros: Ros = Ros()
     world: World | None = None
-    agents: dict[str, Agent] = {"local": Agent()}
+    agents: dict[str, Agent] = {LOCAL_AGENT: Agent()}
     defaults: Defaults = Defaults()
     robots: list[Robot] = Field(min_length=1)
 
