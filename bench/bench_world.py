@@ -87,21 +87,21 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
     import resource
 
     from fleet.world.app import WorldApp
-    from fleet.world.ros_bridge import Command, RobotChannel, RosBridge
+    from fleet.world.ros_bridge import Command, RosBridge
 
     published = {"odom": 0, "scan": 0}
-    odom, scan = RobotChannel.publish_odom, RobotChannel.publish_scan
+    odom, scan = RosBridge.publish_odom, RosBridge.publish_scans
 
-    def count_odom(self, *a):
-        published["odom"] += 1
-        odom(self, *a)
+    def count_odom(self, names, *a):
+        published["odom"] += len(names)
+        odom(self, names, *a)
 
-    def count_scan(self, *a):
-        published["scan"] += 1
-        scan(self, *a)
+    def count_scan(self, names, *a):
+        published["scan"] += len(names)
+        scan(self, names, *a)
 
     # Count the real publishes by wrapping the class's methods (this child process only).
-    RobotChannel.publish_odom, RobotChannel.publish_scan = count_odom, count_scan  # type: ignore[method-assign]
+    RosBridge.publish_odom, RosBridge.publish_scans = count_odom, count_scan  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "world.yaml"
         config.write_text(yaml.safe_dump(world_yaml(model, count)))
