@@ -98,6 +98,7 @@ class WorldApp:
         self._next_odom = 0.0  # sim time: the earliest next_odom of all robots
         self._next_trail = 0.0  # sim time: the earliest next trail sample of all robots
         self._footprints: tuple | None = None  # physics.row it was made for, round rows, radii, other robots
+        self._obstacle_scene: lidar.Scene | None = None  # what lidars see of the obstacles
         self._next_markers = 0.0  # time.monotonic() of the next marker publication
         self._rtf_window: deque[tuple[float, float]] = deque()
         self.real_time_factor = 0.0
@@ -118,10 +119,12 @@ class WorldApp:
     def _add_obstacle(self, spec: ObstacleSpec) -> None:
         self.physics.add_obstacle(spec)
         self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
+        self._obstacle_scene = None
 
     def _remove_obstacle(self, name: str) -> None:
         self.physics.remove_obstacle(name)
         self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
+        self._obstacle_scene = None
 
     def _error(self, key: str, message: str) -> None:
         if self.errors.get(key, {}).get("message") != message:
@@ -306,7 +309,8 @@ class WorldApp:
 
     def _scene(self, poses: np.ndarray) -> lidar.Scene:
         """What the lidars see: obstacles and robots at `poses`; a robot's shapes are owned by its
-        row in poses.  Round robots (most of a large fleet) are added as arrays."""
+        row in poses.  The obstacles' part is made once; round robots (most of a large fleet) are
+        added as arrays."""
         row = self.physics.row
         if self._footprints is None or self._footprints[0] is not row:
             models = {name: self.physics.robots[name].model for name in row}
@@ -315,12 +319,14 @@ class WorldApp:
             others = [(models[name], i) for name, i in row.items() if not models[name].is_round]
             self._footprints = (row, round_rows, radii, others)
         _, round_rows, radii, others = self._footprints
-        shapes = list(self._obstacle_shapes)
-        owners = [-1] * len(shapes)
-        for model, i in others:
-            shapes.append(robot_shape(model, *poses[i].tolist()))
-            owners.append(i)
-        return lidar.Scene.build(shapes, owners).with_circles(poses[round_rows, :2], radii, round_rows)
+        if self._obstacle_scene is None:
+            shapes = self._obstacle_shapes
+            self._obstacle_scene = lidar.Scene.build(shapes, [-1] * len(shapes))
+        scene = self._obstacle_scene.joined(lidar.Scene.circles(poses[round_rows, :2], radii, round_rows))
+        if others:
+            shapes = [robot_shape(model, *poses[i].tolist()) for model, i in others]
+            scene = scene.joined(lidar.Scene.build(shapes, [i for _, i in others]))
+        return scene
 
     def _publish_markers(self, now: float, poses: dict[str, tuple[float, float, float]]) -> None:
         touching = {

@@ -53,17 +53,50 @@ class Scene:
             half=np.array([(s.half_x, s.half_y) for s, _ in rects], dtype=float).reshape(-1, 2),
         )
 
-    def with_circles(self, centers: np.ndarray, radii: np.ndarray, owners: np.ndarray) -> Scene:
-        """This scene and circles (centers (K, 2), radii (K,), owners (K,)) besides."""
-        count = self.n_circles
+    def joined(self, other: Scene) -> Scene:
+        """Both scenes' shapes in one (circles first, as always)."""
         return Scene(
-            centers=np.concatenate((centers, self.centers)).reshape(-1, 2),
-            reach=np.concatenate((radii, self.reach)),
-            owner=np.concatenate((owners.astype(np.int64), self.owner)),
-            n_circles=count + len(radii),
-            radius=np.concatenate((radii, self.radius)),
-            yaw=self.yaw,
-            half=self.half,
+            centers=np.concatenate(
+                (
+                    self.centers[: self.n_circles],
+                    other.centers[: other.n_circles],
+                    self.centers[self.n_circles :],
+                    other.centers[other.n_circles :],
+                )
+            ).reshape(-1, 2),
+            reach=np.concatenate(
+                (
+                    self.reach[: self.n_circles],
+                    other.reach[: other.n_circles],
+                    self.reach[self.n_circles :],
+                    other.reach[other.n_circles :],
+                )
+            ),
+            owner=np.concatenate(
+                (
+                    self.owner[: self.n_circles],
+                    other.owner[: other.n_circles],
+                    self.owner[self.n_circles :],
+                    other.owner[other.n_circles :],
+                )
+            ),
+            n_circles=self.n_circles + other.n_circles,
+            radius=np.concatenate((self.radius, other.radius)),
+            yaw=np.concatenate((self.yaw, other.yaw)),
+            half=np.concatenate((self.half, other.half)).reshape(-1, 2),
+        )
+
+    @classmethod
+    def circles(cls, centers: np.ndarray, radii: np.ndarray, owners: np.ndarray) -> Scene:
+        """A scene of circles only, from arrays: centers (K, 2), radii (K,), owners (K,)."""
+        return cls(
+            centers=centers.reshape(-1, 2),
+            reach=radii,
+            owner=owners.astype(np.int64),
+            n_circles=len(radii),
+            radius=radii,
+            yaw=np.zeros(0),
+            half=np.zeros((0, 2)),
         )
 
 
