@@ -56,6 +56,7 @@ class _Robot:
     trail: Trail = field(default_factory=Trail)
     hits: tuple | None = None  # (x, y, yaw, angle_min, angle_increment, ranges) of the latest scan
     velocity: tuple[float, float] = (0.0, 0.0)
+    model: dict[str, Any] = field(default_factory=dict)  # as the status shows it
 
 
 def resume_time(previous: dict[str, Any] | None) -> float:
@@ -155,6 +156,7 @@ class WorldApp:
             angles=lidar.beam_angles(lidar_spec.angle_min, lidar_spec.increment, lidar_spec.beams),
             next_odom=now,
             next_scan=now + phase,
+            model=model_dict(spec.model),
         )
         self._next_odom = min(self._next_odom, now)
         self._next_trail = min(self._next_trail, now)
@@ -350,7 +352,7 @@ class WorldApp:
                 "pose": {"x": round(x, 4), "y": round(y, 4), "yaw": round(yaw, 4)},
                 "velocity": {"linear": round(robot.velocity[0], 4), "angular": round(robot.velocity[1], 4)},
                 "battery": robot.channel.battery if robot.channel is not None else None,
-                "model": model_dict(robot.spec.model),
+                "model": robot.model,
                 "namespace": robot.spec.namespace,
                 **(robot.channel.link() if robot.channel is not None else {}),
                 "trail": list(robot.trail.points),
