@@ -17,6 +17,7 @@ CPU counts the world process and its status writer (the child process that encod
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -148,11 +149,15 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
 
 
 def _cpu_seconds() -> float:
-    """User + system seconds of this process and of its children that have ended."""
-    import resource
+    """User + system seconds of this process and of its children (the status writer)."""
+    import psutil
 
-    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+    total = 0.0
+    for process in [psutil.Process(), *psutil.Process().children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):
+            times = process.cpu_times()
+            total += times.user + times.system
+    return total
 
 
 def child(model: str, count: int, sim: float, env: dict, script: Path = Path(__file__)) -> dict | None:

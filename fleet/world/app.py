@@ -100,6 +100,7 @@ class WorldApp:
         self._next_trail = 0.0  # sim time: the earliest next trail sample of all robots
         self._footprints: tuple | None = None  # physics.row it was made for, round rows, radii, other robots
         self._obstacle_scene: lidar.Scene | None = None  # what lidars see of the obstacles
+        self._writer: StatusWriter | None = None  # started by the first run(), kept until close()
         self._next_markers = 0.0  # time.monotonic() of the next marker publication
         self._rtf_window: deque[tuple[float, float]] = deque()
         self.real_time_factor = 0.0
@@ -394,12 +395,13 @@ class WorldApp:
     def run(self, sim_duration: float | None = None) -> None:
         """Step until stopped (signal, or sim_duration of sim time has passed)."""
         self._measure_rtf(time.monotonic())
-        writer = StatusWriter(self.status_file) if self.status_file is not None else None
+        if self.status_file is not None and self._writer is None:
+            self._writer = StatusWriter(self.status_file)
         try:
-            self._loop(sim_duration, writer)
+            self._loop(sim_duration, self._writer)
         finally:
-            if writer is not None:
-                writer.close()
+            if self._writer is not None:
+                self._writer.settle()  # its last status must not land after the one below
         self._measure_rtf(time.monotonic())
         self.write_status(stopped=True)
 
@@ -431,6 +433,9 @@ class WorldApp:
                 self.check_reload()
 
     def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
         if self.bridge is not None:
             self.bridge.close()
             self.bridge = None

@@ -60,9 +60,13 @@ class StatusWriter:
         self._in_flight = True
         return True
 
+    def settle(self, timeout: float = 5.0) -> None:
+        """Wait until the status in flight (if any) is written."""
+        self._acknowledged(timeout)
+
     def close(self, timeout: float = 5.0) -> None:
         """Let the status in flight be written, then end the writer."""
-        self._acknowledged(timeout)
+        self.settle(timeout)
         self._outgoing.put(None)
         self._sender.join(timeout)
         assert self._child.stdin is not None
