@@ -33,6 +33,7 @@ from bench.machine import machine_info
 from fleet.runtime.hosting import HostPool
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession
+from fleet.testing.hosting import start_hosted_robot
 from fleet.testing.isolation import reserve_domain_id, ros_environment
 
 LAUNCH = """\
@@ -144,17 +145,17 @@ def cpu_seconds(pids: set[int]) -> float:
 
 def run_case(robots: int, isolation: str, workdir: Path, env: dict, probe: Probe, group_size: int = 25) -> dict:
     paths, expected = write_robots(robots, workdir)
-    sessions = [
-        LaunchSession(path, env=env, log_dir=workdir / "logs" / path.stem, isolation=isolation, backend="embedded")
-        for path in paths
-    ]
     pool = HostPool(workdir / "hosts", env, group_size) if isolation == "agent" else None
+    sessions: list[LaunchSession] = []
     try:
         began = time.monotonic()
-        for session in sessions:
-            session.start()
+        for path in paths:
+            log_dir = workdir / "logs" / path.stem
             if pool is not None:
-                pool.add_robot(session.path.stem.removesuffix(".launch"), session.hosted_nodes(), session.log_dir)
+                sessions.append(start_hosted_robot(path, pool, env, log_dir))
+            else:
+                sessions.append(LaunchSession(path, env=env, log_dir=log_dir, isolation=isolation, backend="embedded"))
+                sessions[-1].start()
         complete = probe.wait_for(expected, timeout=120 + 5 * robots)
         startup = time.monotonic() - began
         if not complete:

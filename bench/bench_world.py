@@ -6,16 +6,22 @@ a walled arena with a few pillars, every robot driving a circle (so contacts hap
 paced as fast as possible for a fixed sim duration.  RTF = sim seconds / wall seconds of the run
 (start-up excluded, reported separately).
 
-    .venv/bin/python bench/bench_world.py            # full table -> bench/results/world.md
+    .venv/bin/python bench/bench_world.py            # full table -> bench/results/world.md (+ .json)
     .venv/bin/python bench/bench_world.py --quick    # smaller counts, shorter runs, no file
+    .venv/bin/python bench/bench_world.py --baseline DIR   # the same runs of the checkout in DIR and of
+        # this one, in turn (A B A B ...), medians -> bench/results/world_compare.md
+
+CPU counts the world process and its status writer (the child process that encodes the status file).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -31,8 +37,10 @@ from bench.machine import machine_info
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "world.md"
-LIGHT_COUNTS = [1, 10, 50, 100, 200]
-HUSKY_COUNTS = [1, 10, 30, 50, 100, 200]
+COMPARE = ROOT / "bench" / "results" / "world_compare.md"
+LIGHT_COUNTS = [1, 10, 50, 100, 200, 300, 500]
+HUSKY_COUNTS = [1, 10, 30, 60, 100]
+COMPARED = [("light", 100), ("light", 200), ("light", 500), ("husky", 30), ("husky", 60)]
 MAX_PREDICTED_WALL = 120.0  # s: skip a husky count predicted to run longer than this
 
 
@@ -87,21 +95,21 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
     import resource
 
     from fleet.world.app import WorldApp
-    from fleet.world.ros_bridge import Command, RobotChannel, RosBridge
+    from fleet.world.ros_bridge import Command, RosBridge
 
     published = {"odom": 0, "scan": 0}
-    odom, scan = RobotChannel.publish_odom, RobotChannel.publish_scan
+    odom, scan = RosBridge.publish_odom, RosBridge.publish_scans
 
-    def count_odom(self, *a):
-        published["odom"] += 1
-        odom(self, *a)
+    def count_odom(self, names, *a):
+        published["odom"] += len(names)
+        odom(self, names, *a)
 
-    def count_scan(self, *a):
-        published["scan"] += 1
-        scan(self, *a)
+    def count_scan(self, names, *a):
+        published["scan"] += len(names)
+        scan(self, names, *a)
 
     # Count the real publishes by wrapping the class's methods (this child process only).
-    RobotChannel.publish_odom, RobotChannel.publish_scan = count_odom, count_scan  # type: ignore[method-assign]
+    RosBridge.publish_odom, RosBridge.publish_scans = count_odom, count_scan  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "world.yaml"
         config.write_text(yaml.safe_dump(world_yaml(model, count)))
@@ -116,11 +124,11 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
         app.run(sim_duration=0.5)  # warm-up
         published.update(odom=0, scan=0)
         contacts0 = app.contacts_count
-        cpu0 = time.process_time()
+        cpu0 = _cpu_seconds()
         t0 = time.perf_counter()
         app.run(sim_duration=sim_duration)
         wall = time.perf_counter() - t0
-        cpu = time.process_time() - cpu0
+        cpu = _cpu_seconds() - cpu0
         contacts = app.contacts_count - contacts0
         app.close()
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -136,12 +144,25 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
         "scan_hz": published["scan"] / sim_duration / max(spawned, 1),
         "contacts": contacts,
         "rss_mib": rss,
+        "load": os.getloadavg()[0],
     }
 
 
-def child(model: str, count: int, sim: float, env: dict) -> dict | None:
+def _cpu_seconds() -> float:
+    """User + system seconds of this process and of its children (the status writer)."""
+    import psutil
+
+    total = 0.0
+    for process in [psutil.Process(), *psutil.Process().children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):
+            times = process.cpu_times()
+            total += times.user + times.system
+    return total
+
+
+def child(model: str, count: int, sim: float, env: dict, script: Path = Path(__file__)) -> dict | None:
     done = subprocess.run(
-        [sys.executable, __file__, "--child", model, str(count), str(sim)],
+        [sys.executable, str(script), "--child", model, str(count), str(sim)],
         env=env,
         capture_output=True,
         text=True,
@@ -156,8 +177,8 @@ def child(model: str, count: int, sim: float, env: dict) -> dict | None:
 
 def table(rows: list[dict]) -> str:
     out = [
-        "| model | robots | sim s | wall s | RTF | CPU (cores) | odom Hz/robot | scan Hz/robot | contacts | start-up s | RSS MiB |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| model | robots | sim s | wall s | RTF | CPU (cores) | odom Hz/robot | scan Hz/robot | contacts | start-up s | RSS MiB | load |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         if r.get("skipped"):
@@ -166,7 +187,7 @@ def table(rows: list[dict]) -> str:
         out.append(
             f"| {r['model']} | {r['robots']} | {r['sim']:.0f} | {r['wall']:.2f} | **{r['rtf']:.2f}** | "
             f"{r['cpu_share']:.2f} | {r['odom_hz']:.1f} | {r['scan_hz']:.1f} | {r['contacts']} | "
-            f"{r['setup']:.2f} | {r['rss_mib']:.0f} |"
+            f"{r['setup']:.2f} | {r['rss_mib']:.0f} | {r.get('load', float('nan')):.1f} |"
         )
     return "\n".join(out)
 
@@ -174,6 +195,8 @@ def table(rows: list[dict]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--baseline", type=Path, help="a checkout to compare with (its bench/bench_world.py)")
+    parser.add_argument("--repeats", type=int, default=3, help="pairs per configuration with --baseline")
     parser.add_argument("--child", nargs=3, metavar=("MODEL", "COUNT", "SIM"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -184,6 +207,9 @@ def main() -> None:
     sys.path.insert(0, str(ROOT))
     from fleet.testing.isolation import reserve_domain_id, ros_environment
 
+    if args.baseline:
+        compare(args.baseline.resolve(), args.repeats)
+        return
     light_counts, husky_counts = ([1, 10, 50], [1, 10]) if args.quick else (LIGHT_COUNTS, HUSKY_COUNTS)
     light_sim, husky_sim = (3.0, 2.0) if args.quick else (10.0, 5.0)
     rows: list[dict] = []
@@ -231,7 +257,7 @@ def main() -> None:
         f"4 Hz; as fast as possible for {light_sim:.0f} s (light) / {husky_sim:.0f} s (husky) of sim time after "
         "0.5 s of warm-up. RTF = sim time / wall time. CPU = process CPU time / wall time (1.0 = one core).\n\n"
         + text
-        + "\n\nTargets: RTF >= 1.5 with 100 light robots, >= 1.0 with 30 husky.\n\n"
+        + "\n\nTargets: RTF >= 1.0 with 500 light robots, >= 1.0 with 60 husky.\n\n"
         "Notes: the world's cost per published message (conversion, serialization, FastDDS write) is "
         "~10-25 us and is included; nobody subscribes, so delivery costs of real subscribers (in their own "
         "processes, on the same cores) are not. Husky counts are run up to the first predicted to take "
@@ -239,7 +265,57 @@ def main() -> None:
         "Light-model cost grows faster than linearly with robot count because each scan sees more robots "
         "within range_max in a denser arena.\n"
     )
+    RESULTS.with_suffix(".json").write_text(json.dumps({"machine": info, "rows": rows}, indent=1) + "\n")
     print(f"wrote {RESULTS}")
+
+
+def compare(baseline: Path, repeats: int) -> None:
+    """RTF of the baseline checkout and of this one, run in turn on the same machine."""
+    from fleet.testing.isolation import reserve_domain_id, ros_environment
+
+    sims = {"light": 5.0, "husky": 5.0}
+    lines = [
+        "| model | robots | RTF before (median) | RTF after (median) | after / before | CPU-s per sim-s before | after | load averages |",
+        "|---|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    data = []
+    with reserve_domain_id() as domain:
+        for model, count in COMPARED:
+            runs: dict[str, list[dict]] = {"before": [], "after": []}
+            for _ in range(repeats):
+                for label, root in (("before", baseline), ("after", ROOT)):
+                    env = ros_environment(domain.domain_id)
+                    env["PYTHONPATH"] = str(root) + os.pathsep + env.get("PYTHONPATH", "")
+                    row = child(model, count, sims[model], env, root / "bench" / "bench_world.py")
+                    if row:
+                        row.setdefault("load", os.getloadavg()[0])
+                        runs[label].append(row)
+                        print(f"{label} {model} {count}: RTF {row['rtf']:.2f} (load {row['load']:.1f})", flush=True)
+            if not runs["before"] or not runs["after"]:
+                continue
+            before = statistics.median(r["rtf"] for r in runs["before"])
+            after = statistics.median(r["rtf"] for r in runs["after"])
+            cpu = {k: statistics.median(r["cpu_share"] * r["wall"] / r["sim"] for r in v) for k, v in runs.items()}
+            loads = ", ".join(f"{r['load']:.1f}" for r in runs["before"] + runs["after"])
+            lines.append(
+                f"| {model} | {count} | {before:.2f} | **{after:.2f}** | {after / before:.1f}x | "
+                f"{cpu['before']:.2f} | {cpu['after']:.2f} | {loads} |"
+            )
+            data.append({"model": model, "robots": count, "runs": runs})
+    info = machine_info()
+    COMPARE.write_text(
+        "# World benchmark: before and after, run in turn\n\n"
+        f"Measured {time.strftime('%Y-%m-%d %H:%M')} with `bench/bench_world.py --baseline` on {info['nproc']} CPUs "
+        f"({info['cpu']}), {info['ram']} RAM, Python {info['python']}; load average at the end {info['load']}. "
+        f"{repeats} runs each of the baseline checkout and this one, in turn (before, after, before, ...), "
+        "as fast as possible for 5 s of sim time, the same world as world.md; medians. "
+        "CPU-s per sim-s: CPU seconds of the world's processes per second of sim time (the work, "
+        "whatever share of the cores it got); the load averages are those at the end of each run "
+        "(before runs first, then after runs).\n\n" + "\n".join(lines) + "\n"
+    )
+    COMPARE.with_suffix(".json").write_text(json.dumps({"machine": info, "configs": data}, indent=1) + "\n")
+    print("\n".join(lines))
+    print(f"wrote {COMPARE}")
 
 
 if __name__ == "__main__":

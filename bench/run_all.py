@@ -1,7 +1,8 @@
-"""Run every benchmark, one after the other; each writes its table to bench/results/<name>.md.
+"""Run every benchmark, one after the other; each writes its table to bench/results/<name>.md,
+and then the figures (bench/plots.py: PNG of time and memory against robots) are drawn from them.
 
-    .venv/bin/python bench/run_all.py            # everything (about 15 minutes on 2 cores)
-    .venv/bin/python bench/run_all.py expand cli # some of them
+    .venv/bin/python bench/run_all.py            # everything (about 20 minutes on 2 cores)
+    .venv/bin/python bench/run_all.py expand cli # some of them (and the figures)
 
 Run them on an otherwise idle machine: they measure wall time on 2 cores.
 """
@@ -21,12 +22,14 @@ BENCHMARKS = {
     "isolation": ["bench_isolation.py"],
     "control": ["bench_control.py"],
     "dataplane": ["bench_dataplane.py"],
+    "plots": ["plots.py"],  # last: draws what the others wrote
 }
 
 
 def main(names: list[str]) -> int:
     failed = []
-    for name in names or list(BENCHMARKS):
+    names = [*(names or BENCHMARKS), *([] if "plots" in names else ["plots"])]
+    for name in dict.fromkeys(names):
         if name not in BENCHMARKS:
             print(f"unknown benchmark {name!r} (known: {', '.join(BENCHMARKS)})", file=sys.stderr)
             return 2

@@ -143,7 +143,7 @@ Isolation = Literal["process", "robot", "agent"]
 class Defaults(Strict):
     template: str = "diff_drive"
     agent: str = LOCAL_AGENT
-    isolation: Isolation = "process"
+    isolation: Isolation = "agent"
     group_size: int = Field(DEFAULT_GROUP_SIZE, ge=1)  # robots per host process (isolation: agent)
     model: Model = Model()
     lidar: Lidar = Lidar()

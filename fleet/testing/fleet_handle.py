@@ -487,7 +487,8 @@ class FleetHandle:
 
     def leftover_processes(self) -> list[str]:
         """Processes carrying the fleet's marker that nobody accounts for: not the router or an
-        agent, not a node in status (an old world or node left by a fault, say)."""
+        agent, not a node in status nor a child of one (the world's status writer), say an old
+        world or node left by a fault."""
         import psutil
 
         expected = set(self.control.running().values())
@@ -502,6 +503,8 @@ class FleetHandle:
             try:
                 if "fleet.runtime.param_helper" in " ".join(process.cmdline()):
                     continue  # an agent's short-lived parameter call
+                if process.ppid() in expected:
+                    continue  # part of a process in status (a world's status writer)
             except psutil.Error:
                 continue
             leftovers.append(_describe(process))

@@ -25,8 +25,8 @@ from fleet.world.geometry import obstacle_shape, robot_shape
 from fleet.world.physics import PhysicsWorld, SpawnError
 from fleet.world.status import (
     CONTACTS_KEPT,
-    SCAN_HITS_MAX,
     Trail,
+    finish_status,
     last_poses,
     last_sim_time,
     model_dict,
@@ -34,6 +34,7 @@ from fleet.world.status import (
     read_status,
     write_status,
 )
+from fleet.world.status_writer import StatusWriter
 
 log = logging.getLogger("fleet.world")
 
@@ -53,8 +54,9 @@ class _Robot:
     next_odom: float
     next_scan: float
     trail: Trail = field(default_factory=Trail)
-    hits: tuple | None = None  # (x, y, yaw, angles, ranges) of the latest scan
+    hits: tuple | None = None  # (x, y, yaw, angle_min, angle_increment, ranges) of the latest scan
     velocity: tuple[float, float] = (0.0, 0.0)
+    model: dict[str, Any] = field(default_factory=dict)  # as the status shows it
 
 
 def resume_time(previous: dict[str, Any] | None) -> float:
@@ -94,6 +96,11 @@ class WorldApp:
         self._tick = 0
         self._slot_every = max(1, round(self.spec.physics_rate / SLOT_RATE))
         self._next_clock = 0.0
+        self._next_odom = 0.0  # sim time: the earliest next_odom of all robots
+        self._next_trail = 0.0  # sim time: the earliest next trail sample of all robots
+        self._footprints: tuple | None = None  # physics.row it was made for, round rows, radii, other robots
+        self._obstacle_scene: lidar.Scene | None = None  # what lidars see of the obstacles
+        self._writer: StatusWriter | None = None  # started by the first run(), kept until close()
         self._next_markers = 0.0  # time.monotonic() of the next marker publication
         self._rtf_window: deque[tuple[float, float]] = deque()
         self.real_time_factor = 0.0
@@ -114,10 +121,12 @@ class WorldApp:
     def _add_obstacle(self, spec: ObstacleSpec) -> None:
         self.physics.add_obstacle(spec)
         self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
+        self._obstacle_scene = None
 
     def _remove_obstacle(self, name: str) -> None:
         self.physics.remove_obstacle(name)
         self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
+        self._obstacle_scene = None
 
     def _error(self, key: str, message: str) -> None:
         if self.errors.get(key, {}).get("message") != message:
@@ -148,7 +157,10 @@ class WorldApp:
             angles=lidar.beam_angles(lidar_spec.angle_min, lidar_spec.increment, lidar_spec.beams),
             next_odom=now,
             next_scan=now + phase,
+            model=model_dict(spec.model),
         )
+        self._next_odom = min(self._next_odom, now)
+        self._next_trail = min(self._next_trail, now)
         log.info(
             "robot '%s' (%s) spawned at (%.2f, %.2f, yaw %.2f)", spec.name, spec.model.type, pose.x, pose.y, pose.yaw
         )
@@ -237,38 +249,37 @@ class WorldApp:
         physics.step()
         self._tick += 1
         now = physics.sim_time
-        stamp = None
-        for robot in self.robots.values():
-            if now >= robot.next_odom:
-                robot.next_odom = max(robot.next_odom + 1.0 / robot.spec.odom_rate, now)
-                state = physics.state(robot.spec.name)
-                robot.velocity = (state.linear, state.angular)
-                if robot.channel is not None:
-                    if stamp is None:
-                        stamp = _stamp(now)
-                    robot.channel.publish_odom(
-                        stamp, state.x, state.y, state.yaw, state.linear, state.lateral, state.angular
-                    )
+        if now >= self._next_odom:
+            self._odometry(now)
         if self._tick % self._slot_every == 0:
             self._slot(now)
         if bridge is not None and now >= self._next_clock:
             self._next_clock = max(self._next_clock + 1.0 / self.spec.clock_rate, now)
             bridge.publish_clock(now)
 
+    def _odometry(self, now: float) -> None:
+        """Odometry of the robots due now, read and published as one batch."""
+        due = [robot for robot in self.robots.values() if now >= robot.next_odom]
+        for robot in due:
+            robot.next_odom = max(robot.next_odom + 1.0 / robot.spec.odom_rate, now)
+        self._next_odom = min((robot.next_odom for robot in self.robots.values()), default=math.inf)
+        if not due:
+            return
+        rows = np.array([self.physics.row[robot.spec.name] for robot in due], dtype=np.int64)
+        poses = self.physics.poses()[rows]
+        velocities = self.physics.velocities(rows, poses[:, 2])
+        for robot, (linear, _, angular) in zip(due, velocities.tolist(), strict=True):
+            robot.velocity = (linear, angular)
+        if self.bridge is not None:
+            self.bridge.publish_odom([robot.spec.name for robot in due], now, poses, velocities)
+
     def _slot(self, now: float) -> None:
         """Lidars due now (one scene for all of them), contacts, trails."""
         due = [robot for robot in self.robots.values() if now >= robot.next_scan]
-        poses = {name: body.pose() for name, body in self.physics.robots.items()}
+        poses = self.physics.poses()
+        row = self.physics.row
         if due:
-            shapes = list(self._obstacle_shapes)
-            owners = [-1] * len(shapes)
-            index = {}
-            for i, (name, (x, y, yaw)) in enumerate(poses.items()):
-                shapes.append(robot_shape(self.physics.robots[name].model, x, y, yaw))
-                owners.append(i)
-                index[name] = i
-            scene = lidar.Scene.build(shapes, owners)
-            stamp = _stamp(now)
+            scene = self._scene(poses)
             # One batched cast per beam layout (usually one for the whole fleet).
             groups: dict[tuple, list[_Robot]] = {}
             for robot in due:
@@ -278,25 +289,47 @@ class WorldApp:
                 )
             for group in groups.values():
                 lid = group[0].spec.lidar
-                group_poses = np.array([poses[r.spec.name] for r in group])
-                owners_idx = np.array([index[r.spec.name] for r in group])
-                all_ranges = lidar.cast_many(
-                    scene, group_poses, owners_idx, group[0].angles, lid.range_min, lid.range_max
-                )
-                for robot, pose, ranges in zip(group, group_poses, all_ranges, strict=False):
+                rows = np.array([row[r.spec.name] for r in group], dtype=np.int64)
+                group_poses = poses[rows]
+                all_ranges = lidar.cast_many(scene, group_poses, rows, group[0].angles, lid.range_min, lid.range_max)
+                for robot, pose, ranges in zip(group, group_poses.tolist(), all_ranges, strict=False):
                     robot.next_scan = max(robot.next_scan + 1.0 / robot.spec.lidar.rate, now)
-                    if robot.channel is not None:
-                        robot.channel.publish_scan(stamp, ranges)
-                    robot.hits = (pose[0], pose[1], pose[2], robot.angles, ranges)  # points only for the status
+                    robot.hits = (*pose, lid.angle_min, lid.increment, ranges)  # points only for the status
+                if self.bridge is not None:
+                    self.bridge.publish_scans([r.spec.name for r in group], now, all_ranges)
         for event in self.physics.poll_contacts():
             self.contacts_count += 1
             self.contacts_last.append(event.as_dict())
             log.info("contact %s: %s - %s at t=%.2f", event.kind, event.a, event.b, event.sim_time)
-        for name, (x, y, _) in poses.items():
-            self.robots[name].trail.sample(now, x, y)
+        if now >= self._next_trail:
+            for name, robot in self.robots.items():
+                x, y, _ = poses[row[name]].tolist()
+                robot.trail.sample(now, x, y)
+            self._next_trail = min((robot.trail.next_time for robot in self.robots.values()), default=math.inf)
         if self.bridge is not None and time.monotonic() >= self._next_markers:
             self._next_markers = time.monotonic() + MARKER_PERIOD
-            self._publish_markers(now, poses)
+            self._publish_markers(now, {name: tuple(poses[i].tolist()) for name, i in row.items()})
+
+    def _scene(self, poses: np.ndarray) -> lidar.Scene:
+        """What the lidars see: obstacles and robots at `poses`; a robot's shapes are owned by its
+        row in poses.  The obstacles' part is made once; round robots (most of a large fleet) are
+        added as arrays."""
+        row = self.physics.row
+        if self._footprints is None or self._footprints[0] is not row:
+            models = {name: self.physics.robots[name].model for name in row}
+            round_rows = np.array([i for name, i in row.items() if models[name].is_round], dtype=np.int64)
+            radii = np.array([models[name].radius for name in row], dtype=float)[round_rows]
+            others = [(models[name], i) for name, i in row.items() if not models[name].is_round]
+            self._footprints = (row, round_rows, radii, others)
+        _, round_rows, radii, others = self._footprints
+        if self._obstacle_scene is None:
+            shapes = self._obstacle_shapes
+            self._obstacle_scene = lidar.Scene.build(shapes, [-1] * len(shapes))
+        scene = self._obstacle_scene.joined(lidar.Scene.circles(poses[round_rows, :2], radii, round_rows))
+        if others:
+            shapes = [robot_shape(model, *poses[i].tolist()) for model, i in others]
+            scene = scene.joined(lidar.Scene.build(shapes, [i for _, i in others]))
+        return scene
 
     def _publish_markers(self, now: float, poses: dict[str, tuple[float, float, float]]) -> None:
         touching = {
@@ -309,24 +342,22 @@ class WorldApp:
         robots = [(name, self.robots[name].spec.model, pose, name in touching) for name, pose in poses.items()]
         self.bridge.publish_markers(now, obstacles, robots)
 
-    def status(self) -> dict[str, Any]:
+    def status_parts(self) -> dict[str, Any]:
+        """The status document with each robot's trail and latest scan still raw
+        (fleet.world.status.finish_status makes the document of them)."""
         robots = {}
+        poses, row = self.physics.poses().tolist(), self.physics.row
         for name, robot in self.robots.items():
-            x, y, yaw = self.physics.robots[name].pose()
-            hits = []
-            if robot.hits:
-                hx, hy, hyaw, angles, ranges = robot.hits
-                every = max(1, math.ceil(len(ranges) / SCAN_HITS_MAX))
-                hits = lidar.hit_points(hx, hy, hyaw, angles, ranges, every)
+            x, y, yaw = poses[row[name]]
             robots[name] = {
                 "pose": {"x": round(x, 4), "y": round(y, 4), "yaw": round(yaw, 4)},
                 "velocity": {"linear": round(robot.velocity[0], 4), "angular": round(robot.velocity[1], 4)},
                 "battery": robot.channel.battery if robot.channel is not None else None,
-                "model": model_dict(robot.spec.model),
+                "model": robot.model,
                 "namespace": robot.spec.namespace,
                 **(robot.channel.link() if robot.channel is not None else {}),
-                "trail": [list(p) for p in robot.trail.points],
-                "scan_hits": [list(p) for p in hits],
+                "trail": list(robot.trail.points),
+                "hits": robot.hits,
             }
         return {
             "fleet": self.spec.fleet,
@@ -340,8 +371,16 @@ class WorldApp:
             "errors": list(self.errors.values()),
         }
 
-    def write_status(self, stopped: bool = False) -> None:
-        if self.status_file is not None:
+    def status(self) -> dict[str, Any]:
+        return finish_status(self.status_parts())
+
+    def write_status(self, stopped: bool = False, writer: StatusWriter | None = None) -> None:
+        """Write the status file now, or hand it to `writer` (skipped while it is busy)."""
+        if self.status_file is None:
+            return
+        if writer is not None:
+            writer.submit({**self.status_parts(), "stopped": stopped})
+        else:
             write_status(self.status_file, {**self.status(), "stopped": stopped})
 
     def _measure_rtf(self, wall: float) -> None:
@@ -355,11 +394,22 @@ class WorldApp:
 
     def run(self, sim_duration: float | None = None) -> None:
         """Step until stopped (signal, or sim_duration of sim time has passed)."""
+        self._measure_rtf(time.monotonic())
+        if self.status_file is not None and self._writer is None:
+            self._writer = StatusWriter(self.status_file)
+        try:
+            self._loop(sim_duration, self._writer)
+        finally:
+            if self._writer is not None:
+                self._writer.settle()  # its last status must not land after the one below
+        self._measure_rtf(time.monotonic())
+        self.write_status(stopped=True)
+
+    def _loop(self, sim_duration: float | None, writer: StatusWriter | None) -> None:
         start_sim = self.physics.sim_time
         dt = self.physics.dt
         wall_ref, sim_ref = time.monotonic(), self.physics.sim_time
         next_status = next_reload = wall_ref
-        self._measure_rtf(wall_ref)
         while not self.stopping:
             if sim_duration is not None and self.physics.sim_time - start_sim >= sim_duration - dt / 2:
                 break
@@ -377,24 +427,19 @@ class WorldApp:
             if wall >= next_status:
                 next_status = wall + STATUS_PERIOD
                 self._measure_rtf(wall)
-                self.write_status()
+                self.write_status(writer=writer)
             if wall >= next_reload:
                 next_reload = wall + RELOAD_PERIOD
                 self.check_reload()
-        self._measure_rtf(time.monotonic())
-        self.write_status(stopped=True)
 
     def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
         if self.bridge is not None:
             self.bridge.close()
             self.bridge = None
         self.physics.close()
-
-
-def _stamp(sim_time: float):
-    from fleet.world.ros_bridge import stamp
-
-    return stamp(sim_time)
 
 
 def run_world(

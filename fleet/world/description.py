@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import re
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,9 +37,9 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
+from fleet.rules import ROS_TOKEN
 from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, read_input
 
-NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 MODEL_TYPES = ("light", "husky", "racecar")
 # Footprint rectangles (length along x, width) of the URDF models, measured from their URDFs.
 URDF_FOOTPRINTS = {"husky": (0.99, 0.68), "racecar": (0.55, 0.30)}
@@ -71,7 +70,7 @@ def _check_problem(message: str, at: tuple = ()) -> PydanticCustomError:
 
 
 def _valid_name(value: str) -> str:
-    if not NAME_RE.match(value):
+    if not ROS_TOKEN.fullmatch(value):
         raise _value_problem(
             f"'{value}' is not a valid name (letters, digits and underscores, not starting with a digit)"
         )
@@ -205,7 +204,7 @@ class LidarSpec(_FromYaml):
 def _namespace(value: str) -> str:
     namespace = value if value.startswith("/") else "/" + value
     namespace = namespace.rstrip("/") or "/"
-    if namespace != "/" and not all(NAME_RE.match(part) for part in namespace[1:].split("/")):
+    if namespace != "/" and not all(ROS_TOKEN.fullmatch(part) for part in namespace[1:].split("/")):
         raise _value_problem(f"'{namespace}' is not a valid ROS namespace")
     return namespace
 
@@ -464,7 +463,7 @@ def _what(data: Any, loc: tuple, named: bool = True) -> str:
     kind = "obstacle" if loc[0] == "obstacles" else "robot"
     item = data[loc[0]][loc[1]]
     name = item.get("name") if isinstance(item, dict) else None
-    what = f"{kind} '{name}'" if named and isinstance(name, str) and NAME_RE.match(name) else kind
+    what = f"{kind} '{name}'" if named and isinstance(name, str) and ROS_TOKEN.fullmatch(name) else kind
     return ".".join([what, *map(str, loc[2:])])
 
 

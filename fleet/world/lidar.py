@@ -18,6 +18,7 @@ from fleet.world.geometry import Shape
 
 _TINY = 1e-12
 _TWO_PI = 2.0 * math.pi
+_WIDEN = 1e-6  # of a beam step: a beam this close to a window's edge is tested too
 PIECE = 1.0  # m: long rectangles are cut into pieces this long, so a wall only costs the beams that see it
 
 
@@ -50,6 +51,52 @@ class Scene:
             radius=np.array([s.radius for s, _ in circles], dtype=float),
             yaw=np.array([s.yaw for s, _ in rects], dtype=float),
             half=np.array([(s.half_x, s.half_y) for s, _ in rects], dtype=float).reshape(-1, 2),
+        )
+
+    def joined(self, other: Scene) -> Scene:
+        """Both scenes' shapes in one (circles first, as always)."""
+        return Scene(
+            centers=np.concatenate(
+                (
+                    self.centers[: self.n_circles],
+                    other.centers[: other.n_circles],
+                    self.centers[self.n_circles :],
+                    other.centers[other.n_circles :],
+                )
+            ).reshape(-1, 2),
+            reach=np.concatenate(
+                (
+                    self.reach[: self.n_circles],
+                    other.reach[: other.n_circles],
+                    self.reach[self.n_circles :],
+                    other.reach[other.n_circles :],
+                )
+            ),
+            owner=np.concatenate(
+                (
+                    self.owner[: self.n_circles],
+                    other.owner[: other.n_circles],
+                    self.owner[self.n_circles :],
+                    other.owner[other.n_circles :],
+                )
+            ),
+            n_circles=self.n_circles + other.n_circles,
+            radius=np.concatenate((self.radius, other.radius)),
+            yaw=np.concatenate((self.yaw, other.yaw)),
+            half=np.concatenate((self.half, other.half)).reshape(-1, 2),
+        )
+
+    @classmethod
+    def circles(cls, centers: np.ndarray, radii: np.ndarray, owners: np.ndarray) -> Scene:
+        """A scene of circles only, from arrays: centers (K, 2), radii (K,), owners (K,)."""
+        return cls(
+            centers=centers.reshape(-1, 2),
+            reach=radii,
+            owner=owners.astype(np.int64),
+            n_circles=len(radii),
+            radius=radii,
+            yaw=np.zeros(0),
+            half=np.zeros((0, 2)),
         )
 
 
@@ -116,46 +163,58 @@ def cast_many(
     limit = range_max + scene.reach
     # obstacles (owner -1) are seen by every scan; a robot's own shapes are not
     within = (dist2 <= limit * limit) & ((scene.owner[None, :] != owners[:, None]) | (scene.owner[None, :] < 0))
-    s_idx, n_idx = np.nonzero(within)
+    # Circles and rectangles apart, so that each kind's triples below are one contiguous block.
+    s_circle, n_circle = np.nonzero(within[:, : scene.n_circles])
+    s_rect, n_rect = np.nonzero(within[:, scene.n_circles :])
+    s_idx, n_idx = np.concatenate((s_circle, s_rect)), np.concatenate((n_circle, n_rect + scene.n_circles))
     if not s_idx.size:
         return best
 
     # Beam windows: a shape whose bounding circle is seen at bearing phi under half-angle alpha can
-    # only be hit by beams between phi - alpha and phi + alpha (widened by one beam each side; the
-    # exact intersection is computed per (scan, shape, beam) triple below).
+    # only be hit by beams between phi - alpha and phi + alpha (widened by a hair against rounding;
+    # the exact intersection is computed per (scan, shape, beam) triple below).
     dist = np.sqrt(dist2[s_idx, n_idx])
     reach = scene.reach[n_idx]
     alpha = np.where(dist > reach, np.arcsin(np.minimum(reach / np.maximum(dist, _TINY), 1.0)), math.pi)
     bearing = np.arctan2(rel[s_idx, n_idx, 1], rel[s_idx, n_idx, 0])
     base = np.mod(bearing - poses[s_idx, 2] - float(angles[0]), _TWO_PI)
-    lo = np.floor((base - alpha) / increment).astype(np.int64) - 1
+    lo = np.ceil((base - alpha) / increment - _WIDEN).astype(np.int64)
     per_turn = _TWO_PI / increment
-    hi = np.minimum(np.ceil((base + alpha) / increment).astype(np.int64) + 1, lo + int(per_turn) + 2)
-    counts = hi - lo + 1
+    hi = np.minimum(np.floor((base + alpha) / increment + _WIDEN).astype(np.int64), lo + int(per_turn) + 1)
+    counts = np.maximum(hi - lo + 1, 0)
     starts = np.cumsum(counts) - counts
     pair = np.repeat(np.arange(s_idx.size), counts)
     beam = lo[pair] + (np.arange(int(counts.sum())) - starts[pair])
+    n_circle_triples = int(counts[: s_circle.size].sum())
     if beams * increment >= _TWO_PI - 1e-9:
         beam %= beams
     else:  # a partial fan: a window may also reach the fan from the other side of +-pi
+        circle_pair = pair < s_circle.size
         pair = np.concatenate((pair, pair))
         beam = np.concatenate((beam, beam - round(per_turn)))
+        circle_pair = np.concatenate((circle_pair, circle_pair))
         keep = (beam >= 0) & (beam < beams)
         pair, beam = pair[keep], beam[keep]
+        order = np.argsort(~circle_pair[keep], kind="stable")  # circles' triples first again
+        pair, beam = pair[order], beam[order]
+        n_circle_triples = int(np.count_nonzero(circle_pair[keep]))
     sensor, shape = s_idx[pair], n_idx[pair]
-    world = angles[beam] + poses[sensor, 2]
-    dx, dy = np.cos(world), np.sin(world)
+    # beam directions in the world: the beam's angle turned by the sensor's heading
+    cos_a, sin_a = np.cos(angles), np.sin(angles)
+    cos_s, sin_s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    ca, sa, cs, ss = cos_a[beam], sin_a[beam], cos_s[sensor], sin_s[sensor]
+    dx, dy = ca * cs - sa * ss, sa * cs + ca * ss
     px, py = poses[sensor, 0], poses[sensor, 1]
     t = np.empty(shape.size)
-    circle = shape < scene.n_circles
-    if circle.any():
-        c = shape[circle]
-        t[circle] = _circles(px[circle], py[circle], dx[circle], dy[circle], scene.centers[c], scene.radius[c])
-    rect = ~circle
-    if rect.any():
-        r = shape[rect]
-        k = r - scene.n_circles
-        t[rect] = _rects(px[rect], py[rect], dx[rect], dy[rect], scene.centers[r], scene.yaw[k], scene.half[k])
+    c = slice(0, n_circle_triples)
+    if n_circle_triples:
+        hit = shape[c]
+        t[c] = _circles(px[c], py[c], dx[c], dy[c], scene.centers[hit], scene.radius[hit])
+    r = slice(n_circle_triples, shape.size)
+    if shape.size > n_circle_triples:
+        hit = shape[r]
+        k = hit - scene.n_circles
+        t[r] = _rects(px[r], py[r], dx[r], dy[r], scene.centers[hit], scene.yaw[k], scene.half[k])
     np.minimum.at(best.reshape(-1), sensor * beams + beam, t)
     best[best > range_max] = np.inf
     best[best < range_min] = -np.inf

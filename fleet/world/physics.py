@@ -10,6 +10,7 @@ import math
 import os
 from dataclasses import dataclass
 
+import numpy as np
 import pybullet as pb
 import pybullet_data
 
@@ -53,6 +54,12 @@ class SpawnError(Exception):
 def yaw_of(quaternion) -> float:
     x, y, z, w = quaternion
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def _yaws(quaternions: np.ndarray) -> np.ndarray:
+    """yaw_of for rows of quaternions."""
+    x, y, z, w = quaternions.T
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def flat_quaternion(yaw: float) -> tuple[float, float, float, float]:
@@ -140,22 +147,6 @@ class LightRobot(_Robot):
         )
         pb.setCollisionFilterPair(body, plane, -1, -1, 0, physicsClientId=client)
         super().__init__(client, name, model, body)
-
-    def before_step(self, dt: float, gravity: float = 0.0) -> None:
-        client, body = self.client, self.body
-        pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
-        yaw = yaw_of(orn)
-        if abs(orn[0]) + abs(orn[1]) > 1e-4 or abs(pos[2] - LIGHT_Z) > 1e-3:
-            pb.resetBasePositionAndOrientation(
-                body, (pos[0], pos[1], LIGHT_Z), flat_quaternion(yaw), physicsClientId=client
-            )
-        v = self.linear
-        pb.resetBaseVelocity(
-            body,
-            (v * math.cos(yaw), v * math.sin(yaw), -gravity * dt),
-            (0.0, 0.0, self.angular),
-            physicsClientId=client,
-        )
 
 
 class HuskyRobot(_Robot):
@@ -281,7 +272,11 @@ class PhysicsWorld:
         self.sim_time = 0.0
         self._touching: dict[tuple[str, str], float] = {}  # pair -> sim time last seen in contact
         self._light: list[LightRobot] = []
+        self._light_rows = np.zeros(0, dtype=np.int64)  # rows of the light robots in poses()
         self._urdf: list[_Robot] = []
+        self.row: dict[str, int] = {}  # robot name -> its row in poses()
+        self._bodies: list[int] = []
+        self._poses: tuple[np.ndarray, np.ndarray] | None = None  # positions, quaternions: until the next step
 
     # -- content ---------------------------------------------------------------------------------
 
@@ -338,7 +333,11 @@ class PhysicsWorld:
         self._touching = {pair: t for pair, t in self._touching.items() if name not in pair}
 
     def _sort_robots(self) -> None:
+        self._poses = None
+        self.row = {name: i for i, name in enumerate(self.robots)}
+        self._bodies = [robot.body for robot in self.robots.values()]
         self._light = [r for r in self.robots.values() if isinstance(r, LightRobot)]
+        self._light_rows = np.array([self.row[r.name] for r in self._light], dtype=np.int64)
         self._urdf = [r for r in self.robots.values() if not isinstance(r, LightRobot)]
         gravity = GRAVITY if self._urdf else 0.0
         if gravity != self.gravity:
@@ -363,13 +362,62 @@ class PhysicsWorld:
     def step(self) -> None:
         dt, gravity = self.dt, self.gravity
         self._ticks += 1
-        if gravity or self._ticks % self._light_every == 0:
-            for robot in self._light:
-                robot.before_step(dt, gravity)
+        if self._light and (gravity or self._ticks % self._light_every == 0):
+            self._drive_light(dt, gravity)
         for urdf_robot in self._urdf:
             urdf_robot.before_step(dt, gravity)
         pb.stepSimulation(physicsClientId=self.client)
+        self._poses = None
         self.sim_time += dt
+
+    def _drive_light(self, dt: float, gravity: float) -> None:
+        """Set every light robot's velocity from its heading and command, first putting back flat
+        any that a contact tilted or lifted (rare, so cheap)."""
+        client = self.client
+        positions, quaternions = self._raw_poses()
+        positions, quaternions = positions[self._light_rows], quaternions[self._light_rows]
+        yaws = _yaws(quaternions)
+        tilted = (np.abs(quaternions[:, 0]) + np.abs(quaternions[:, 1]) > 1e-4) | (
+            np.abs(positions[:, 2] - LIGHT_Z) > 1e-3
+        )
+        for i in np.flatnonzero(tilted).tolist():
+            x, y, _ = positions[i].tolist()
+            pb.resetBasePositionAndOrientation(
+                self._light[i].body, (x, y, LIGHT_Z), flat_quaternion(float(yaws[i])), physicsClientId=client
+            )
+        if tilted.any():
+            self._poses = None
+        speeds = np.array([robot.linear for robot in self._light])
+        vx, vy = (speeds * np.cos(yaws)).tolist(), (speeds * np.sin(yaws)).tolist()
+        vz = -gravity * dt
+        reset = pb.resetBaseVelocity
+        for robot, x, y in zip(self._light, vx, vy, strict=True):
+            reset(robot.body, (x, y, vz), (0.0, 0.0, robot.angular), physicsClientId=client)
+
+    def _raw_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (n, 3) and quaternions (n, 4) of every robot, read once per step."""
+        if self._poses is None:
+            get, client = pb.getBasePositionAndOrientation, self.client
+            read = [get(body, physicsClientId=client) for body in self._bodies]
+            self._poses = (
+                np.array([position for position, _ in read], dtype=float).reshape(-1, 3),
+                np.array([orientation for _, orientation in read], dtype=float).reshape(-1, 4),
+            )
+        return self._poses
+
+    def poses(self) -> np.ndarray:
+        """(n, 3) x, y, yaw of every robot, row `self.row[name]`."""
+        positions, quaternions = self._raw_poses()
+        return np.column_stack((positions[:, 0], positions[:, 1], _yaws(quaternions)))
+
+    def velocities(self, rows: np.ndarray, yaws: np.ndarray) -> np.ndarray:
+        """(S, 3) linear, lateral and angular velocity of the robots in `rows` (body frame), whose
+        headings are `yaws`."""
+        get, client, bodies = pb.getBaseVelocity, self.client, self._bodies
+        read = [get(bodies[row], physicsClientId=client) for row in rows.tolist()]
+        world = np.array([(v[0], v[1], w[2]) for v, w in read], dtype=float).reshape(-1, 3)
+        c, s = np.cos(yaws), np.sin(yaws)
+        return np.column_stack((c * world[:, 0] + s * world[:, 1], -s * world[:, 0] + c * world[:, 1], world[:, 2]))
 
     def state(self, name: str) -> RobotState:
         return self.robots[name].state()

@@ -2,13 +2,13 @@
 
 Threading (stepSimulation holds the GIL, so the physics thread must stay busy with physics):
 the executor spins in a background thread and its callbacks only store the latest command or
-battery reading; the physics thread reads those and publishes odom/scan/clock itself, reusing one
-message object per robot and topic so publishing costs little more than serialization.
+battery reading; the physics thread reads those and publishes odom/scan/clock itself.  Odometry,
+ground truth and scans of all robots are kept serialized (fleet.world.frames): a batch of them is
+written with numpy and published as bytes, so a message costs ~3 us instead of ~20.
 """
 
 from __future__ import annotations
 
-import array
 import contextlib
 import math
 import threading
@@ -30,6 +30,7 @@ from visualization_msgs.msg import MarkerArray
 
 from fleet.world import markers
 from fleet.world.description import ModelSpec, ObstacleSpec, RobotSpec
+from fleet.world.frames import Field, SerializedFrames
 
 # Best-effort subscriptions match both reliable and best-effort publishers; reliable publishers
 # match both kinds of subscribers (RViz, Nav2's sensor-data QoS, ros2 topic echo).
@@ -69,26 +70,6 @@ class RobotChannel:
         self.battery_sub = node.create_subscription(BatteryState, f"{ns}/battery", self._on_battery, _SUB_QOS)
         self.markers_pub = node.create_publisher(MarkerArray, f"{ns}/markers", _PUB_QOS)
 
-        self.odom = Odometry()
-        self.odom.header.frame_id = f"{spec.name}/odom"
-        self.odom.child_frame_id = f"{spec.name}/base_link"
-        self.scan = LaserScan()
-        lidar = spec.lidar
-        self.scan.header.frame_id = f"{spec.name}/base_scan"
-        self.scan.angle_min = lidar.angle_min
-        self.scan.angle_increment = lidar.increment
-        self.scan.angle_max = lidar.angle_min + lidar.increment * (lidar.beams - 1)
-        self.scan.time_increment = 0.0  # all beams are taken at the same instant
-        self.scan.scan_time = 1.0 / lidar.rate
-        self.scan.range_min = lidar.range_min
-        self.scan.range_max = lidar.range_max
-        self.truth = PoseStamped()
-        self.truth.header.frame_id = "world"
-        # odom's origin is the robot's nominal spawn pose from world.yaml (not where a restarted
-        # world put it back), so odom stays continuous when the world restarts.
-        origin = spec.pose
-        self._origin = (origin.x, origin.y, origin.yaw, math.cos(origin.yaw), math.sin(origin.yaw))
-
     # executor thread: store and return
     def _on_cmd(self, msg: Twist) -> None:
         self.command = Command(msg.linear.x, msg.angular.z, time.monotonic(), self._sim_now())
@@ -117,38 +98,129 @@ class RobotChannel:
             "odom_subscribers": self.odom_pub.get_subscription_count(),
         }
 
-    def publish_odom(self, t: Time, x: float, y: float, yaw: float, vx: float, vy: float, wz: float) -> None:
-        ox, oy, oyaw, c, s = self._origin
-        dx, dy = x - ox, y - oy
-        lx, ly, lyaw = c * dx + s * dy, -s * dx + c * dy, yaw - oyaw
-        msg = self.odom
-        msg.header.stamp = t
-        pose = msg.pose.pose
-        pose.position.x, pose.position.y = lx, ly
-        pose.orientation.z, pose.orientation.w = math.sin(lyaw / 2), math.cos(lyaw / 2)
-        twist = msg.twist.twist
-        twist.linear.x, twist.linear.y, twist.angular.z = vx, vy, wz
-        self.odom_pub.publish(msg)
-        if self.truth_pub is not None:
-            truth = self.truth
-            truth.header.stamp = t
-            truth.pose.position.x, truth.pose.position.y = x, y
-            truth.pose.orientation.z, truth.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
-            self.truth_pub.publish(truth)
-
-    def publish_scan(self, t: Time, ranges: np.ndarray) -> None:
-        msg = self.scan
-        msg.header.stamp = t
-        # array('f') is the fast path of rclpy's float32[] setter (no per-element checks)
-        msg.ranges = array.array("f", ranges.astype(np.float32).tobytes())
-        self.scan_pub.publish(msg)
-
     def destroy(self) -> None:
         for entity in (self.odom_pub, self.scan_pub, self.truth_pub, self.markers_pub):
             if entity is not None:
                 self.node.destroy_publisher(entity)
         self.node.destroy_subscription(self.cmd_sub)
         self.node.destroy_subscription(self.battery_sub)
+
+
+_STAMP = (Field("header.stamp.sec", "i4"), Field("header.stamp.nanosec", "u4"))
+_ODOM_FIELDS = (
+    *_STAMP,
+    *(Field(f"pose.pose.{name}", "f8") for name in ("position.x", "position.y", "orientation.z", "orientation.w")),
+    *(Field(f"twist.twist.{name}", "f8") for name in ("linear.x", "linear.y", "angular.z")),
+)
+_TRUTH_FIELDS = (
+    *_STAMP,
+    *(Field(f"pose.{name}", "f8") for name in ("position.x", "position.y", "orientation.z", "orientation.w")),
+)
+
+
+def odom_template(spec: RobotSpec) -> Odometry:
+    msg = Odometry()
+    msg.header.frame_id = f"{spec.name}/odom"
+    msg.child_frame_id = f"{spec.name}/base_link"
+    return msg
+
+
+def truth_template(spec: RobotSpec) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = "world"
+    return msg
+
+
+def scan_template(spec: RobotSpec) -> LaserScan:
+    lidar = spec.lidar
+    msg = LaserScan()
+    msg.header.frame_id = f"{spec.name}/base_scan"
+    msg.angle_min = lidar.angle_min
+    msg.angle_increment = lidar.increment
+    msg.angle_max = lidar.angle_min + lidar.increment * (lidar.beams - 1)
+    msg.time_increment = 0.0  # all beams are taken at the same instant
+    msg.scan_time = 1.0 / lidar.rate
+    msg.range_min = lidar.range_min
+    msg.range_max = lidar.range_max
+    msg.ranges = [0.0] * lidar.beams
+    return msg
+
+
+def _write_stamp(frames: SerializedFrames, slots: np.ndarray, sim_time: float) -> None:
+    t = stamp(sim_time)
+    frames.write("header.stamp.sec", slots, t.sec)
+    frames.write("header.stamp.nanosec", slots, t.nanosec)
+
+
+class Outbox:
+    """The serialized odometry, ground truth and scans of a set of robots (fleet.world.frames),
+    built once for the robots present and published in batches by robot name."""
+
+    def __init__(self, channels: list[RobotChannel]) -> None:
+        self.slot = {channel.spec.name: i for i, channel in enumerate(channels)}
+        self.odom_pubs = [channel.odom_pub for channel in channels]
+        self.odom = SerializedFrames([odom_template(c.spec) for c in channels], _ODOM_FIELDS)
+        # odom's origin is the robot's nominal spawn pose from world.yaml (not where a restarted
+        # world put it back), so odom stays continuous when the world restarts.
+        self.origin = np.array([(c.spec.pose.x, c.spec.pose.y, c.spec.pose.yaw) for c in channels]).reshape(-1, 3)
+        with_truth = [c for c in channels if c.truth_pub is not None]
+        self.truth_slot = np.full(len(channels), -1, dtype=np.int64)
+        self.truth_slot[[self.slot[c.spec.name] for c in with_truth]] = np.arange(len(with_truth))
+        self.truth_pubs = [c.truth_pub for c in with_truth]
+        self.truth = SerializedFrames([truth_template(c.spec) for c in with_truth], _TRUTH_FIELDS)
+        # scans by beam count (the length of the ranges field): (frames, slot -> row, publishers)
+        self.scans: dict[int, tuple[SerializedFrames, np.ndarray, list]] = {}
+        for beams in sorted({c.spec.lidar.beams for c in channels}):
+            same = [c for c in channels if c.spec.lidar.beams == beams]
+            rows = np.full(len(channels), -1, dtype=np.int64)
+            rows[[self.slot[c.spec.name] for c in same]] = np.arange(len(same))
+            fields = (*_STAMP, Field("ranges", "f4", beams))
+            frames = SerializedFrames([scan_template(c.spec) for c in same], fields)
+            self.scans[beams] = (frames, rows, [c.scan_pub for c in same])
+
+    def slots(self, names: list[str]) -> np.ndarray:
+        return np.array([self.slot[name] for name in names], dtype=np.int64)
+
+    def publish_odom(self, names: list[str], sim_time: float, poses: np.ndarray, velocities: np.ndarray) -> None:
+        """poses (S, 3) x, y, yaw in the world; velocities (S, 3) linear, lateral, angular in the body frame."""
+        slots = self.slots(names)
+        ox, oy, oyaw = self.origin[slots].T
+        c, s = np.cos(oyaw), np.sin(oyaw)
+        dx, dy = poses[:, 0] - ox, poses[:, 1] - oy
+        half = (poses[:, 2] - oyaw) / 2
+        odom = self.odom
+        _write_stamp(odom, slots, sim_time)
+        odom.write("pose.pose.position.x", slots, c * dx + s * dy)
+        odom.write("pose.pose.position.y", slots, -s * dx + c * dy)
+        odom.write("pose.pose.orientation.z", slots, np.sin(half))
+        odom.write("pose.pose.orientation.w", slots, np.cos(half))
+        odom.write("twist.twist.linear.x", slots, velocities[:, 0])
+        odom.write("twist.twist.linear.y", slots, velocities[:, 1])
+        odom.write("twist.twist.angular.z", slots, velocities[:, 2])
+        pubs = self.odom_pubs
+        for slot, data in zip(slots.tolist(), odom.messages(slots), strict=True):
+            pubs[slot].publish(data)
+        truth_slots = self.truth_slot[slots]
+        has_truth = truth_slots >= 0
+        if has_truth.any():
+            rows, world = truth_slots[has_truth], poses[has_truth]
+            truth = self.truth
+            _write_stamp(truth, rows, sim_time)
+            truth.write("pose.position.x", rows, world[:, 0])
+            truth.write("pose.position.y", rows, world[:, 1])
+            truth.write("pose.orientation.z", rows, np.sin(world[:, 2] / 2))
+            truth.write("pose.orientation.w", rows, np.cos(world[:, 2] / 2))
+            for row, data in zip(rows.tolist(), truth.messages(rows), strict=True):
+                self.truth_pubs[row].publish(data)
+
+    def publish_scans(self, names: list[str], sim_time: float, ranges: np.ndarray) -> None:
+        """ranges (S, beams), one scan per robot named."""
+        frames, rows_of, pubs = self.scans[ranges.shape[1]]
+        rows = rows_of[self.slots(names)]
+        _write_stamp(frames, rows, sim_time)
+        frames.write("ranges", rows, ranges.astype(np.float32))
+        for row, data in zip(rows.tolist(), frames.messages(rows), strict=True):
+            pubs[row].publish(data)
 
 
 class RosBridge:
@@ -161,6 +233,7 @@ class RosBridge:
         self.scene_pub = self.node.create_publisher(MarkerArray, "~/markers", _PUB_QOS)
         self._clock_msg = Clock()
         self.channels: dict[str, RobotChannel] = {}
+        self._outbox: Outbox | None = None
         self.sim_time = 0.0  # written by the physics thread, read by callbacks for stamps
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -178,12 +251,27 @@ class RosBridge:
     def add_robot(self, spec: RobotSpec) -> RobotChannel:
         channel = RobotChannel(self.node, spec, lambda: self.sim_time)
         self.channels[spec.name] = channel
+        self._outbox = None
         return channel
 
     def remove_robot(self, name: str) -> None:
         channel = self.channels.pop(name, None)
         if channel is not None:
             channel.destroy()
+            self._outbox = None
+
+    @property
+    def outbox(self) -> Outbox:
+        """The serialized messages of the robots present (rebuilt after robots came or went)."""
+        if self._outbox is None:
+            self._outbox = Outbox(list(self.channels.values()))
+        return self._outbox
+
+    def publish_odom(self, names: list[str], sim_time: float, poses: np.ndarray, velocities: np.ndarray) -> None:
+        self.outbox.publish_odom(names, sim_time, poses, velocities)
+
+    def publish_scans(self, names: list[str], sim_time: float, ranges: np.ndarray) -> None:
+        self.outbox.publish_scans(names, sim_time, ranges)
 
     def publish_clock(self, sim_time: float) -> None:
         self._clock_msg.clock = stamp(sim_time)

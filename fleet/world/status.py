@@ -58,6 +58,26 @@ class Trail:
             self.next_time = sim_time + TRAIL_PERIOD
 
 
+def finish_status(parts: dict[str, Any]) -> dict[str, Any]:
+    """The status document from the world's parts: each robot's "trail" (points) and "hits"
+    ((x, y, yaw, angle_min, angle_increment, ranges) of its latest scan, or None) become the
+    "trail" and the decimated "scan_hits" of the document."""
+    from fleet.world.lidar import beam_angles, hit_points
+
+    robots = {}
+    for name, entry in parts["robots"].items():
+        robot = {key: value for key, value in entry.items() if key != "hits"}
+        robot["trail"] = [list(point) for point in entry["trail"]]
+        points: list[tuple[float, float]] = []
+        if entry["hits"] is not None:
+            x, y, yaw, angle_min, increment, ranges = entry["hits"]
+            angles = beam_angles(angle_min, increment, len(ranges))
+            points = hit_points(x, y, yaw, angles, ranges, max(1, math.ceil(len(ranges) / SCAN_HITS_MAX)))
+        robot["scan_hits"] = [list(point) for point in points]
+        robots[name] = robot
+    return {**parts, "robots": robots}
+
+
 def write_status(path: str | Path, data: dict[str, Any]) -> None:
     """Readers see the old status or the new one, never half of one."""
     # json.dumps uses the C encoder; json.dump(data, file) streams through the pure-Python one

@@ -11,6 +11,7 @@ import pytest
 
 from fleet.runtime.hosting import HostPool
 from fleet.runtime.supervisor import LaunchSession
+from fleet.testing.hosting import start_hosted_robot
 from fleet.testing.poll import poll
 from fleet.testing.ros import RosProbe
 
@@ -61,10 +62,7 @@ def start_robot(tmp_path, ros_env, pool: HostPool, index: int) -> LaunchSession:
     (tmp_path / f"{robot}.params.yaml").write_text(params)
     path = tmp_path / f"{robot}.launch.yaml"
     path.write_text(LAUNCH.format(robot=robot, tolerance=0.1 + 0.05 * index))
-    session = LaunchSession(path, env=ros_env, log_dir=tmp_path / robot / "logs", isolation="agent")
-    session.start()
-    pool.add_robot(robot, session.hosted_nodes(), session.log_dir)
-    return session
+    return start_hosted_robot(path, pool, ros_env, tmp_path / robot / "logs")
 
 
 def states(pool: HostPool) -> dict[str, tuple]:

@@ -3,7 +3,6 @@ contacts in the status file, robots joining and leaving through world.yaml."""
 
 import json
 import math
-import signal
 import subprocess
 import sys
 import threading
@@ -86,40 +85,13 @@ class Listener:
 
 
 @pytest.fixture
-def world(tmp_path, ros_env):
-    config = tmp_path / "world.yaml"
-    config.write_text(WORLD.format(extra=""))
-    status = tmp_path / "status.json"
-    log = tmp_path / "world.log"  # a file, not a pipe: a full pipe would block the world
-    with open(log, "w") as out:
-        proc = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "fleet.nodes.world",
-                "--config",
-                str(config),
-                "--status-file",
-                str(status),
-                "--as-fast-as-possible",
-            ],
-            env=ros_env,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
+def world(start_world):
+    config, status, proc = start_world(WORLD.format(extra=""), "--as-fast-as-possible")
     listener = Listener()
     try:
         yield config, status, listener, proc
     finally:
         listener.close()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        print(log.read_text()[-4000:])
 
 
 def test_world_drives_reports_contacts_and_hosts_joining_robots(world):

@@ -4,9 +4,6 @@ follows it and turns red when it touches something."""
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import sys
 from typing import Any
 
 import pytest
@@ -25,28 +22,8 @@ robots:
 
 
 @pytest.fixture
-def world(tmp_path, ros_env):
-    config = tmp_path / "world.yaml"
-    config.write_text(WORLD)
-    log = tmp_path / "world.log"
-    with open(log, "w") as out:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "fleet.nodes.world", "--config", str(config)],
-            env=ros_env,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    try:
-        yield process
-    finally:
-        if process.poll() is None:
-            process.send_signal(signal.SIGINT)
-            try:
-                process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
-        print(log.read_text()[-3000:])
+def world(start_world):
+    return start_world(WORLD)[2]
 
 
 def by_id(array) -> dict[tuple[str, int], Any]:

@@ -1,0 +1,56 @@
+"""Messages rewritten in their serialized bytes equal the same messages serialized by rclpy."""
+
+import numpy as np
+import pytest
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import LaserScan
+
+from fleet.world.description import LidarSpec, RobotSpec
+from fleet.world.frames import Field, SerializedFrames
+from fleet.world.ros_bridge import odom_template, scan_template
+
+ODOM = (
+    Field("header.stamp.sec", "i4"),
+    Field("header.stamp.nanosec", "u4"),
+    Field("pose.pose.position.x", "f8"),
+    Field("pose.pose.orientation.w", "f8"),
+    Field("twist.twist.angular.z", "f8"),
+)
+
+
+def test_odometry_fields_written_in_place_match_rclpy_serialization():
+    specs = [RobotSpec(name, f"/{name}") for name in ("r1", "robot_with_a_longer_name", "r3")]
+    frames = SerializedFrames([odom_template(spec) for spec in specs], ODOM)
+    slots = np.array([2, 0])
+    frames.write("header.stamp.sec", slots, 12)
+    frames.write("header.stamp.nanosec", slots, 345_000_000)
+    frames.write("pose.pose.position.x", slots, np.array([1.5, -2.25]))
+    frames.write("pose.pose.orientation.w", slots, np.array([0.5, 1.0]))
+    frames.write("twist.twist.angular.z", slots, np.array([0.125, -0.3]))
+    got = frames.messages(np.array([0, 1, 2]))
+    for slot, x, w, wz in ((2, 1.5, 0.5, 0.125), (0, -2.25, 1.0, -0.3)):
+        expected = odom_template(specs[slot])
+        expected.header.stamp.sec, expected.header.stamp.nanosec = 12, 345_000_000
+        expected.pose.pose.position.x, expected.pose.pose.orientation.w, expected.twist.twist.angular.z = x, w, wz
+        assert got[slot] == serialize_message(expected)
+    assert got[1] == serialize_message(odom_template(specs[1]))  # not written: as built
+    assert deserialize_message(got[2], Odometry).child_frame_id == "r3/base_link"
+
+
+def test_scan_ranges_written_in_place_match_rclpy_serialization():
+    spec = RobotSpec("r1", "/r1", lidar=LidarSpec(beams=7))
+    frames = SerializedFrames([scan_template(spec)] * 2, (Field("header.stamp.sec", "i4"), Field("ranges", "f4", 7)))
+    ranges = np.array([[0.5, np.inf, -np.inf, 1.0, 2.0, 3.0, 7.25]], dtype=np.float32)
+    frames.write("ranges", np.array([1]), ranges)
+    frames.write("header.stamp.sec", np.array([1]), 3)
+    expected = scan_template(spec)
+    expected.ranges = ranges[0].tolist()
+    expected.header.stamp.sec = 3
+    assert frames.messages(np.array([1])) == [serialize_message(expected)]
+    assert deserialize_message(frames.messages(np.array([0]))[0], LaserScan).ranges.tolist() == [0.0] * 7
+
+
+def test_a_field_the_message_does_not_have_is_refused():
+    with pytest.raises(AttributeError):
+        SerializedFrames([odom_template(RobotSpec("r1", "/r1"))], (Field("pose.pose.position.q", "f8"),))
