@@ -39,7 +39,8 @@ def make_spec(robots: int, path: Path, agents: int = 10, simulated_every: int = 
                 {"name": f"o{i}", "type": "box", "position": [i * 3.0, -5.0], "size": [1, 1, 1]} for i in range(20)
             ]
         },
-        "agents": {f"host{i}": {} for i in range(agents)},
+        # Each agent takes its share (more than the default max_robots when 1,000 robots share one).
+        "agents": {f"host{i}": {"max_robots": max(1, -(-robots // agents))} for i in range(agents)},
         "defaults": {"agent": "host0", "parameters": {"controller": {"max_speed": 0.6}}},
         "robots": [
             {
