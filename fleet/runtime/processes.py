@@ -2,16 +2,14 @@
 supervisor dies; the processes that carry a marker in their environment.
 
 Each node runs in its own session (so its own process group): signals go to the whole group,
-children of a node included.  `PR_SET_PDEATHSIG` makes the kernel SIGKILL the child when the
-*thread* that forked it exits, which covers a SIGKILLed supervisor; so callers must spawn from a
-thread that lives as long as the children do.
+children of a node included.  Each dies with the thread that forked it (fleet.lifetime), which
+covers a SIGKILLed supervisor; so callers must spawn from a thread that lives as long as the
+children do.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import logging
 import os
 import signal
@@ -23,21 +21,9 @@ from typing import IO
 
 import psutil
 
-_PR_SET_PDEATHSIG = 1
+from fleet.lifetime import die_with_parent
+
 _log = logging.getLogger("fleet.processes")
-
-# Resolved once in the parent: the child, between fork and exec, only makes the call.
-_libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-_prctl = _libc.prctl
-_prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
-_prctl.restype = ctypes.c_int
-
-
-def _die_with_parent() -> None:
-    _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    # The supervisor may have died between fork and prctl: then we were re-parented already.
-    if os.getppid() == 1:
-        os._exit(1)
 
 
 def spawn(
@@ -53,7 +39,7 @@ def spawn(
         stdout=subprocess.PIPE if output is None else output,
         stderr=subprocess.STDOUT,
         start_new_session=True,
-        preexec_fn=_die_with_parent,
+        preexec_fn=die_with_parent,
         close_fds=True,
     )
 

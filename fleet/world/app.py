@@ -395,7 +395,7 @@ class WorldApp:
     def run(self, sim_duration: float | None = None) -> None:
         """Step until stopped (signal, or sim_duration of sim time has passed)."""
         self._measure_rtf(time.monotonic())
-        if self.status_file is not None and self._writer is None:
+        if self.status_file is not None and self._writer is None and not self.stopping:
             self._writer = StatusWriter(self.status_file)
         try:
             self._loop(sim_duration, self._writer)
