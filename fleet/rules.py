@@ -196,3 +196,29 @@ def template_name_problem(name: object) -> str | None:
             "found in the templates directory, not a path"
         )
     return None
+
+
+def topic_name_problem(name: object) -> str | None:
+    """Why `name` cannot name a topic a template shares, or None: absolute (`/fleet/announcements`,
+    fleet-wide) or relative to the robot's namespace (`pose`, `sensors/pose`), each token a ROS
+    name.  Private (`~/x`) and substitution (`{node}`) names need a node, and a shared topic has
+    none, so they are refused."""
+    if not isinstance(name, str):
+        return f"must be a string, not {type(name).__name__}"
+    if not name or name == "/":
+        return "must not be empty"
+    if name.startswith("~") or "{" in name:
+        return f"{name!r}: private (~) and substituted ({{...}}) names are relative to a node; a shared topic has none"
+    relative = name.removeprefix("/")
+    if relative.endswith("/") or "//" in name:
+        return f"{name!r} is not a valid ROS topic name: empty token (a doubled or trailing '/')"
+    for token in relative.split("/"):
+        if problem := ros_name_problem(token):
+            return f"{name!r}: token {problem}"
+    return None
+
+
+def resolve_topic_name(name: str, namespace: str) -> str:
+    """The full name of topic `name` (already checked by topic_name_problem) as a node in
+    `namespace` would resolve it: absolute names stay, relative ones go below the namespace."""
+    return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"

@@ -27,6 +27,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from fleet.dataplane.echoes import Echoes
+
 log = logging.getLogger("fleet.bridge")
 STATS_PERIOD = 10.0  # s between the bridge's traffic lines in its log
 PROBE_PERIOD = 1.0  # s between probes of the path through the router
@@ -60,6 +62,9 @@ class Bridge:
         self.last_echo = 0.0  # time.monotonic() of the router's last echo of our probe
         self._zenoh: dict[str, Any] = {}  # exported topic -> its Zenoh publisher on the current session
         self._keep: list[Any] = []  # the current session's subscribers and publishers
+        # Topics both sent and brought in (shared by templates): what we publish we hear again.
+        both = {route.name for route in self.exports} & {route.name for route in self.imports}
+        self._echoes = {name: Echoes() for name in both}
         self._ros_publishers = {
             route.name: node.create_publisher(message_class(route.type), route.name, ros_qos(route))
             for route in self.imports
@@ -82,7 +87,9 @@ class Bridge:
             # whose link was cut filled the router's queue towards it and stalled every bridge's
             # traffic, the other agents' too, until the router gave up on that link.
             publishers[route.name] = session.declare_publisher(
-                data_key(self.fleet, route.name), congestion_control=zenoh.CongestionControl.DROP
+                data_key(self.fleet, route.name),
+                congestion_control=zenoh.CongestionControl.DROP,
+                allowed_destination=zenoh.Locality.REMOTE,  # not to our own import of a shared topic
             )
         for route in self.imports:
             keep.append(session.declare_subscriber(data_key(self.fleet, route.name), self._receiver(route.name)))
@@ -100,9 +107,11 @@ class Bridge:
         self.last_echo = time.monotonic()
 
     def _sender(self, topic: str):
+        echoes = self._echoes.get(topic)
+
         def send(data: bytes) -> None:  # rclpy executor thread
             publisher = self._zenoh.get(topic)
-            if publisher is None:
+            if publisher is None or (echoes is not None and echoes.is_echo(data)):
                 return
             try:
                 publisher.put(data)
@@ -114,9 +123,13 @@ class Bridge:
 
     def _receiver(self, topic: str):
         publisher = self._ros_publishers[topic]
+        echoes = self._echoes.get(topic)
 
         def receive(sample) -> None:  # Zenoh thread: publish and return
-            publisher.publish(sample.payload.to_bytes())
+            data = sample.payload.to_bytes()
+            if echoes is not None:
+                echoes.brought_in(data)
+            publisher.publish(data)
             self.counts["in"] += 1
 
         return receive

@@ -19,6 +19,7 @@ from fleet.expand.outline import LaunchOutline, outline
 from fleet.expand.parameters import Override, ParameterLayers, check_names_disjoint, check_type_stable, parse_override
 from fleet.expand.python_launch import python_source
 from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference
+from fleet.expand.shared import SharedTopic, conflict
 from fleet.expand.templating import TemplateSet, argument_problem, builtin_template_dirs
 from fleet.rules import (
     LAUNCH_SUFFIX,
@@ -58,6 +59,7 @@ class RobotPlan:
     launch_args: dict[str, str]
     launch_text: str  # the rendered .launch.yaml
     launch_python: str  # the same as a Python launch file
+    shared: tuple[SharedTopic, ...] = ()  # topics its template shares (share(...))
 
 
 @dataclass
@@ -126,6 +128,7 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     ]
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
+    _check_shared(spec, robots, templates)
     # One warning per parameter name a template does not know, however many robots set it.
     unknown: dict[tuple[str, str, str], list[str]] = {}
     checked: set[int] = set()  # shared layers checked with a robot: the next ones check only what they changed
@@ -238,6 +241,7 @@ def _plan_robot(
         launch_args={k: str(v) for k, v in arguments.items()},
         launch_text=rendered.text,
         launch_python=rendered.python,
+        shared=rendered.shared,
     )
 
 
@@ -585,10 +589,58 @@ def _bridge_routes(spec: FleetSpec, bundles: list[Bundle], robots: list[RobotPla
     """The topics each agent's bridge will carry (the `zenoh` transport sends them with the deploy)."""
     if spec.ros.transport != "zenoh":
         return {}
-    from fleet.wire.topics import bridge_routes  # the protocol's models: only for fleets that bridge
+    # The protocol's models: only for fleets that bridge.
+    from fleet.wire.protocol import TopicRoute
+    from fleet.wire.topics import SharedRoute, bridge_routes
 
     world_agent = next((bundle.agent for bundle in bundles if bundle.kind == "world"), None)
-    return bridge_routes(world_agent, [(robot.name, robot.namespace, robot.agent) for robot in robots])
+    shared = [
+        SharedRoute(
+            robot.agent,
+            TopicRoute(
+                name=topic.name,
+                type=topic.type,
+                reliable=topic.reliable,
+                transient_local=topic.transient_local,
+                depth=topic.depth,
+            ),
+            topic.publishes,
+            topic.subscribes,
+        )
+        for robot in robots
+        for topic in robot.shared
+    ]
+    return bridge_routes(world_agent, [(robot.name, robot.namespace, robot.agent) for robot in robots], shared)
+
+
+def _check_shared(spec: FleetSpec, robots: list[RobotPlan], templates: TemplateSet) -> None:
+    """A shared topic has one type and one QoS fleet-wide, and is not one the fleet carries
+    already (the world's topics for each robot and /clock)."""
+    if not any(plan.shared for plan in robots):
+        return
+    first: dict[str, tuple[RobotPlan, SharedTopic]] = {}
+    world_topics: set[str] = set()
+    if spec.world is not None:
+        from fleet.wire.topics import world_topic_names
+
+        simulated = {robot.name for robot in spec.robots if robot.simulated}
+        world_topics = world_topic_names(plan.namespace for plan in robots if plan.name in simulated)
+    for plan in robots:
+        for topic in plan.shared:
+            where = Location(templates.find(plan.template))
+            if topic.name in world_topics:
+                raise TemplateError(
+                    f"robot {plan.name} shares {topic.name}, which the world's topics already carry "
+                    "(each robot's odom, scan, ground_truth, cmd_vel, battery and /clock)",
+                    where,
+                )
+            known = first.setdefault(topic.name, (plan, topic))
+            if problem := conflict(known[1], topic):
+                raise TemplateError(
+                    f"shared topic {topic.name}: robots {known[0].name} and {plan.name} declare it with {problem}: "
+                    "a shared topic has one type and one QoS in the whole fleet",
+                    where,
+                )
 
 
 def _check_units_per_agent(spec: FleetSpec) -> None:

@@ -14,13 +14,14 @@ wrong.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from fleet.errors import Location, SpecError, TemplateError
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.python_launch import python_source
+from fleet.expand.shared import SharedTopic
 from fleet.expand.templating import TemplateSet
 from fleet.rules import PARAMS_SUFFIX
 from fleet.spec.yaml_source import load_yaml
@@ -37,6 +38,7 @@ class RenderedLaunch:
     python: str  # the equivalent .launch.py
     template_file: Path
     argument_defaults: dict[str, Any] = field(default_factory=dict)  # as the template's arg() calls give them
+    shared: tuple[SharedTopic, ...] = ()  # its share(...) calls
 
 
 def params_file_reference(robot: str) -> str:
@@ -68,11 +70,12 @@ class LaunchRenderer:
         if self.templates.identity_only(template):
             # The robot's own rendering would be exactly this (see TemplateSet.identity_only).
             text, argument_defaults = _identify(shape.text, name, namespace), shape.argument_defaults
+            shared = tuple(replace(topic, name=_identify(topic.name, name, namespace)) for topic in shape.shared)
         else:
             rendered = self.templates.render(template, context, arguments, where)
             if _identify(shape.text, name, namespace) != rendered.text:
                 return self._parse(template, context, arguments, where, name)
-            text, argument_defaults = rendered.text, rendered.arguments_asked
+            text, argument_defaults, shared = rendered.text, rendered.arguments_asked, tuple(rendered.shared)
         nodes = tuple(
             NodeOutline(
                 name=_identify(node.name, name, namespace),
@@ -89,6 +92,7 @@ class LaunchRenderer:
             python=_identify(shape.python, name, namespace),
             template_file=shape.template_file,
             argument_defaults=argument_defaults,
+            shared=shared,
         )
 
     def _parse(
@@ -110,6 +114,7 @@ class LaunchRenderer:
             python=python,
             template_file=rendered.template_file,
             argument_defaults=rendered.arguments_asked,
+            shared=tuple(rendered.shared),
         )
 
 

@@ -32,6 +32,7 @@ from jinja2 import nodes
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 
 from fleet.errors import Location, TemplateError
+from fleet.expand.shared import SharedMark, SharedTopic, declare, merge
 from fleet.rules import PARAMS_SUFFIX, TEMPLATE_SUFFIX, template_name_problem
 from fleet.spec.yaml_source import MAX_TEXT_CHARS
 
@@ -52,6 +53,8 @@ def yaml_literal(value: Any) -> str:
     """A value as a YAML flow literal that parses back to exactly that value."""
     if isinstance(value, jinja2.Undefined):
         str(value)  # StrictUndefined raises UndefinedError with the variable's name
+    if isinstance(value, SharedMark):  # share(...) declares, prints nothing
+        return ""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
@@ -182,6 +185,7 @@ class RenderedTemplate:
     text: str
     template_file: Path
     arguments_asked: dict[str, Any] = field(default_factory=dict)  # arg(name, default) calls
+    shared: list[SharedTopic] = field(default_factory=list)  # share(...) calls, one per topic
 
 
 class TemplateSet:
@@ -259,16 +263,31 @@ class TemplateSet:
             # Launch arguments are strings; booleans in the ROS launch spelling.
             return ("true" if value else "false") if isinstance(value, bool) else str(value)
 
+        shared: list[SharedTopic] = []
+        namespace = context.get("robot", {}).get("namespace", "/")
+
+        def share(
+            topic: Any,
+            type: Any,  # the template's word for it
+            robot: Any = "both",
+            reliability: Any = "reliable",
+            durability: Any = "volatile",
+            depth: Any = 10,
+        ) -> SharedMark:
+            shared.append(declare(topic, type, namespace, robot, reliability, durability, depth))
+            return SharedMark()
+
         try:
             template = self._environment.get_template(path.name)  # the loader searches in the same order as find()
-            text = _render_bounded(template, {**context, "arg": arg}, self.render_seconds)
+            text = _render_bounded(template, {**context, "arg": arg, "share": share}, self.render_seconds)
+            shared = merge(shared)
         except jinja2.TemplateSyntaxError as error:
             raise TemplateError(
                 f"template syntax error: {error.message}", Location(error.filename or path, error.lineno)
             ) from None
         except jinja2.UndefinedError as error:
             raise TemplateError(
-                f"{error.message} (available: {', '.join([*sorted(context), 'arg'])})",
+                f"{error.message} (available: {', '.join([*sorted(context), 'arg', 'share'])})",
                 Location(path, _template_line(error, path)),
             ) from None
         except _RenderTimeout:
@@ -292,7 +311,7 @@ class TemplateSet:
             raise TemplateError("template includes or calls itself without end", Location(path)) from None
         except (jinja2.TemplateError, TypeError, ValueError, ArithmeticError, LookupError) as error:
             raise TemplateError(str(error), Location(path, _template_line(error, path))) from None
-        return RenderedTemplate(text=text, template_file=path, arguments_asked=asked)
+        return RenderedTemplate(text=text, template_file=path, arguments_asked=asked, shared=shared)
 
 
 _IDENTITY = {"robot": {"name", "namespace"}, "params_file": None}  # variable -> attributes printed

@@ -6,10 +6,15 @@ agent than the world's gets the world's side of its topics through the two agent
 and the world gets the robot's side the same way.  Robots on the world's agent need no bridge.
 QoS below is that of the publishers (fleet/world/ros_bridge.py, fleet_nodes), which the
 receiving bridge republishes with, so subscribers match as they would locally.
+
+Templates add topics of their own (`share(...)`, fleet/expand/shared.py): such a topic leaves
+an agent whose robots publish it for every other agent whose robots subscribe to it, and only
+those (Zenoh delivers a message only where a bridge declared a subscriber for its key).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from fleet.wire.protocol import BridgeRoutes, TopicRoute
@@ -34,13 +39,58 @@ ROBOT_TOPICS = (
 CLOCK = TopicRoute(name="/clock", type="rosgraph_msgs/msg/Clock")
 
 
-def bridge_routes(world_agent: str | None, robots: list[tuple[str, str, str]]) -> dict[str, BridgeRoutes]:
+@dataclass(frozen=True)
+class SharedRoute:
+    """A topic a robot's template shares, on that robot's agent."""
+
+    agent: str
+    route: TopicRoute
+    publishes: bool  # the robot's nodes publish it
+    subscribes: bool  # the robot's nodes subscribe to it
+
+
+def world_topic_names(robot_namespaces: Iterable[str]) -> set[str]:
+    """Every topic the world's side carries for these robots, and /clock."""
+    names = {
+        f"{namespace.rstrip('/')}/{crossing.suffix}" for namespace in robot_namespaces for crossing in ROBOT_TOPICS
+    }
+    return names | {CLOCK.name}
+
+
+def bridge_routes(
+    world_agent: str | None, robots: list[tuple[str, str, str]], shared: Iterable[SharedRoute] = ()
+) -> dict[str, BridgeRoutes]:
     """agent -> the topics its bridge exports and imports.
 
-    `robots`: (name, namespace, agent) of every robot of the fleet."""
+    `robots`: (name, namespace, agent) of every robot of the fleet; `shared`: the topics their
+    templates share (one type and QoS per topic name)."""
     routes: dict[str, BridgeRoutes] = {}
-    if world_agent is None:
-        return routes
+    if world_agent is not None:
+        _world_routes(routes, world_agent, robots)
+    _shared_routes(routes, shared)
+    return routes
+
+
+def _shared_routes(routes: dict[str, BridgeRoutes], shared: Iterable[SharedRoute]) -> None:
+    publishing: dict[str, set[str]] = {}  # topic -> agents with robots publishing it
+    subscribing: dict[str, set[str]] = {}
+    route_of: dict[str, TopicRoute] = {}
+    for declared in shared:
+        route_of.setdefault(declared.route.name, declared.route)
+        if declared.publishes:
+            publishing.setdefault(declared.route.name, set()).add(declared.agent)
+        if declared.subscribes:
+            subscribing.setdefault(declared.route.name, set()).add(declared.agent)
+    for name in sorted(route_of):
+        publishers, subscribers = publishing.get(name, set()), subscribing.get(name, set())
+        for agent in sorted(publishers | subscribers):
+            if agent in publishers and subscribers - {agent}:
+                routes.setdefault(agent, BridgeRoutes()).exports.append(route_of[name])
+            if agent in subscribers and publishers - {agent}:
+                routes.setdefault(agent, BridgeRoutes()).imports.append(route_of[name])
+
+
+def _world_routes(routes: dict[str, BridgeRoutes], world_agent: str, robots: list[tuple[str, str, str]]) -> None:
     world = routes.setdefault(world_agent, BridgeRoutes())
     remote_agents = sorted({agent for _, _, agent in robots if agent != world_agent})
     if remote_agents:
@@ -60,4 +110,3 @@ def bridge_routes(world_agent: str | None, robots: list[tuple[str, str, str]]) -
             )
             (world.exports if crossing.from_world else world.imports).append(route)
             (robot.imports if crossing.from_world else robot.exports).append(route)
-    return routes
