@@ -66,6 +66,10 @@ def view_tables(view, agents: bool = True):
     for row in view.robots:
         if row.error:
             tables.append(Text(f"{row.fleet}/{row.name} on {row.agent}: {row.error}", style="red"))
+    for fleet, topics in sorted(view.shared_topics.items()):
+        for topic in topics:
+            if topic["problem"]:
+                tables.append(Text(f"{fleet}: {topic['problem']}", style="yellow"))
     return tables
 
 

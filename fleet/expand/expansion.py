@@ -95,6 +95,11 @@ class Expansion:
     def _robots_by_name(self) -> dict[str, RobotPlan]:
         return {robot.name: robot for robot in self.robots}
 
+    def shared_topics(self, agent: str) -> list[SharedTopic]:
+        """The topics the robots of `agent` share, one per name."""
+        topics = {topic.name: topic for robot in self.robots if robot.agent == agent for topic in robot.shared}
+        return [topics[name] for name in sorted(topics)]
+
     def bundle(self, name: str) -> Bundle | None:
         return self._bundles_by_name.get(name)
 
@@ -597,13 +602,7 @@ def _bridge_routes(spec: FleetSpec, bundles: list[Bundle], robots: list[RobotPla
     shared = [
         SharedRoute(
             robot.agent,
-            TopicRoute(
-                name=topic.name,
-                type=topic.type,
-                reliable=topic.reliable,
-                transient_local=topic.transient_local,
-                depth=topic.depth,
-            ),
+            TopicRoute(**topic.route_fields),
             topic.publishes,
             topic.subscribes,
         )

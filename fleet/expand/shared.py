@@ -14,6 +14,7 @@ import importlib.util
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from fleet.rules import MAX_TOPIC_NAME_LENGTH, resolve_topic_name, topic_name_problem
 
@@ -38,6 +39,17 @@ class SharedTopic:
     depth: int = 10
     publishes: bool = True  # this robot's nodes publish it
     subscribes: bool = True  # this robot's nodes subscribe to it
+
+    @property
+    def route_fields(self) -> dict[str, Any]:
+        """The fields of its bridge route (fleet.wire.protocol.TopicRoute)."""
+        return {
+            "name": self.name,
+            "type": self.type,
+            "reliable": self.reliable,
+            "transient_local": self.transient_local,
+            "depth": self.depth,
+        }
 
     @property
     def qos(self) -> tuple[str, str, int]:

@@ -43,6 +43,7 @@ def requests_for(
             sent_at=now,
             discovery_server=discovery.server if discovery else None,
             discovery_host=discovery.host if discovery else None,
+            shared=[p.TopicRoute(**topic.route_fields) for topic in expansion.shared_topics(agent)],
         )
         for agent, bundles in sorted(by_agent.items())
     ]

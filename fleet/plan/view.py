@@ -84,6 +84,8 @@ class FleetView:
     # transport every agent runs its own, and the list has one per agent
     discovery: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     bridges: dict[str, dict[str, int | None]] = field(default_factory=dict)  # fleet -> agent -> pid
+    # fleet -> one entry per shared topic: {"name", "publishers" (agent -> count), "problem"}
+    shared_topics: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
 
     @property
     def service_pids(self) -> set[int]:
@@ -105,6 +107,7 @@ class FleetView:
             worlds=[world for world in self.worlds if world.fleet == fleet],
             discovery={f: d for f, d in self.discovery.items() if f == fleet},
             bridges={f: b for f, b in self.bridges.items() if f == fleet},
+            shared_topics={f: t for f, t in self.shared_topics.items() if f == fleet},
         )
 
     def robots_of(self, fleet: str) -> list[RobotRow]:
@@ -123,6 +126,7 @@ class FleetView:
             "worlds": [asdict(world) for world in self.worlds],
             "discovery": self.discovery,
             "bridges": self.bridges,
+            "shared_topics": self.shared_topics,
             "all_running": self.all_running,
         }
 
@@ -135,6 +139,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     worlds: dict[str, tuple[str, p.WorldSummary]] = {}  # fleet -> (agent, summary)
     discovery: dict[str, list[dict[str, Any]]] = {}
     bridges: dict[str, dict[str, int | None]] = {}
+    shared: dict[str, dict[str, dict[str, p.SharedTopicState]]] = {}  # fleet -> topic -> agent -> state
 
     for status in statuses:
         info = status.agent
@@ -157,6 +162,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             )
         if status.bridge_pid is not None:
             bridges.setdefault(status.fleet, {})[info.name] = status.bridge_pid
+        for topic in status.shared_topics:
+            shared.setdefault(status.fleet, {}).setdefault(topic.name, {})[info.name] = topic
         for robot in status.robots:
             robots[(status.fleet, robot.name)] = RobotRow(
                 fleet=status.fleet,
@@ -234,7 +241,33 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         worlds=world_rows,
         discovery=discovery,
         bridges=bridges,
+        shared_topics={fleet: shared_topic_rows(topics) for fleet, topics in sorted(shared.items())},
     )
+
+
+SHARED_SILENT = 10.0  # s without a publisher of a shared topic on any agent before status says so
+WATCH_STALE = 5.0  # s after which an agent's count of a shared topic's publishers is too old to trust
+
+
+def shared_topic_rows(topics: dict[str, dict[str, p.SharedTopicState]]) -> list[dict[str, Any]]:
+    """One row per shared topic of a fleet from the agents' watches (fleet.dataplane.watch), with
+    a problem in words when no agent has seen a publisher of it for SHARED_SILENT (pure).  A
+    watch that has not counted lately says nothing either way."""
+    rows = []
+    for name, states in sorted(topics.items()):
+        fresh = {agent: state for agent, state in states.items() if state.age is None or state.age <= WATCH_STALE}
+        row: dict[str, Any] = {
+            "name": name,
+            "publishers": {agent: state.publishers for agent, state in sorted(fresh.items())},
+            "problem": "",
+        }
+        silent = [state.silent for state in fresh.values()]
+        if fresh and all(s is not None for s in silent):
+            quiet = min(s for s in silent if s is not None)
+            if quiet >= SHARED_SILENT:
+                row["problem"] = f"shared topic {name}: no publisher on any agent for {quiet:.0f} s"
+        rows.append(row)
+    return rows
 
 
 WORLD_SILENT = 3.0  # s without a report from the world: it is not advancing (frozen, stopped)

@@ -454,6 +454,9 @@ class Agent:
             if request.transport == "zenoh" and (request.bridge.exports or request.bridge.imports):
                 routes = request.bridge.model_dump_json()
                 wanted[(request.fleet, "bridge")] = (f"{request.discovery_server}|{routes}", request)
+            if request.shared:
+                topics = ",".join(topic.name for topic in request.shared)
+                wanted[(request.fleet, "watch")] = (f"{request.discovery_server}|{topics}", request)
         return wanted
 
     def _service(self, fleet: str, kind: str, key: str, request: p.ApplyRequest):
@@ -463,6 +466,8 @@ class Agent:
         directory = services_dir(self.store.root)
         if kind == "discovery":
             return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
+        if kind == "watch":
+            return self._shared_watch(fleet, key, request)
         config = directory / f"{fleet}.bridge.json"
         directory.mkdir(parents=True, exist_ok=True)
         write_atomic(
@@ -481,6 +486,32 @@ class Agent:
         command = [sys.executable, "-m", "fleet.dataplane.bridge", str(config)]
         env = self._unit_env(request.domain_id, request.discovery_server)
         return ServiceProcess(key, command, env, directory / f"{fleet}.bridge.log")
+
+    def _shared_watch(self, fleet: str, key: str, request: p.ApplyRequest):
+        """The fleet's shared topic watch (fleet.dataplane.watch): a discovery super client."""
+        from fleet.runtime.processes import ServiceProcess
+
+        directory = services_dir(self.store.root)
+        directory.mkdir(parents=True, exist_ok=True)
+        config = directory / f"{fleet}.watch.json"
+        status_file = directory / f"{fleet}.watch.status.json"
+        status_file.unlink(missing_ok=True)  # counts of an earlier watch are not this one's
+        topics = [topic.name for topic in request.shared]
+        write_atomic(config, json.dumps({"fleet": fleet, "topics": topics, "status_file": str(status_file)}))
+        env = self._unit_env(request.domain_id, request.discovery_server)
+        if request.discovery_server:
+            env["ROS_SUPER_CLIENT"] = "TRUE"  # sees every publisher without subscribing
+        command = [sys.executable, "-m", "fleet.dataplane.watch", str(config)]
+        return ServiceProcess(key, command, env, directory / f"{fleet}.watch.log")
+
+    def _shared_topics(self, fleet: str) -> list[p.SharedTopicState]:
+        """What this agent's watch last counted (none while it has not counted yet)."""
+        try:
+            data = json.loads((services_dir(self.store.root) / f"{fleet}.watch.status.json").read_text())
+            age = round(max(0.0, time.time() - float(data["wall_time"])), 1)
+            return [p.SharedTopicState(name=name, age=age, **counts) for name, counts in data["topics"].items()]
+        except (OSError, ValueError, KeyError, TypeError):
+            return []
 
     def _services_loop(self) -> None:
         """Run the services of every fleet that wants them here; stop those no longer wanted."""
@@ -555,6 +586,8 @@ class Agent:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
         if bridge is not None:
             reply.bridge_pid = bridge.pid
+        if fleet and state.request.shared:
+            reply.shared_topics = self._shared_topics(fleet)
         seen = set()
         for name, unit in units:
             reply.robots.append(unit.state(overrides.get(name, {})))

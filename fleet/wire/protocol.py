@@ -280,6 +280,8 @@ class ApplyRequest(Message):
     # The `zenoh` transport: topics this agent's bridge carries over the fleet's Zenoh network.
     transport: Literal["dds", "zenoh"] = "dds"
     bridge: BridgeRoutes = BridgeRoutes()
+    # Topics this agent's robots share (templates' share(...)): the agent watches their publishers.
+    shared: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
 
     @field_validator("fleet", "agent")
     @classmethod
@@ -498,6 +500,15 @@ def world_summary(document: dict[str, Any]) -> WorldSummary:
     return summary
 
 
+class SharedTopicState(BaseModel):
+    """A shared topic's publishers as one agent sees them (fleet.dataplane.watch)."""
+
+    name: str
+    publishers: int = Field(ge=0)  # not counting the fleet's bridge
+    silent: float | None = None  # seconds since a publisher was last seen; None while there is one
+    age: float | None = None  # seconds since the watch last counted
+
+
 class StatusReply(Message):
     kind: Literal["status"] = "status"
     agent: AgentInfo
@@ -510,6 +521,7 @@ class StatusReply(Message):
     discovery_server: str | None = None
     discovery_pid: int | None = None
     bridge_pid: int | None = None  # this agent's Zenoh bridge of the fleet, when it runs one
+    shared_topics: list[SharedTopicState] = []  # the shared topics this agent watches (fleet.dataplane.watch)
     robots: list[RobotState] = []
     world: WorldSummary | None = None  # when this agent runs the fleet's world and it has reported
     time: float

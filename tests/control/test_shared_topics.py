@@ -4,6 +4,8 @@ loopback, so only the agents' bridges join them), ROS tools on each side."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from fleet.testing.poll import poll
@@ -13,6 +15,7 @@ from tests.control.control_helpers import DATA
 pytestmark = pytest.mark.integration
 
 ANNOUNCEMENTS = "/fleet/announcements"
+SILENT = f"shared topic {ANNOUNCEMENTS}: no publisher on any agent for"
 
 
 def shared_spec(cluster):
@@ -38,6 +41,18 @@ def test_a_shared_topic_published_on_one_agent_reaches_the_other_once(fresh_two_
         what="a bridge on each agent",
     )
     servers = {server["agent"]: server["server"] for server in view.discovery["shared"]}
+    # The robots declare it, nothing publishes it yet: status says so, in the table and in --json.
+    poll(
+        lambda: cluster.cli("status", "--connect", cluster.endpoint, "--fleet", "shared").stdout,
+        until=lambda table: SILENT in " ".join(table.split()),
+        timeout=40,
+        what="the table saying that no one publishes the announcements",
+    )
+    status = json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint, "--fleet", "shared").stdout)
+    rows = {row["name"]: row for row in status["shared_topics"]["shared"]}
+    assert rows[ANNOUNCEMENTS]["problem"].startswith(SILENT)
+    assert rows[ANNOUNCEMENTS]["publishers"] == {"hostA": 0, "hostB": 0}
+    assert rows["/a1/status"]["problem"] and rows["/b1/status"]["problem"]
     with (
         RosProbe("on_host_a", cluster.domain_id, servers["hostA"]) as host_a,
         RosProbe("on_host_b", cluster.domain_id, servers["hostB"]) as host_b,
@@ -73,6 +88,14 @@ def test_a_shared_topic_published_on_one_agent_reaches_the_other_once(fresh_two_
             )
 
         host_a.wait_until(all_heard, 30, "every announcement on both agents")
+        # Publishers on both agents now (the probes'): not counted twice for a bridge's republishing.
+        announcements = poll(
+            lambda: {row["name"]: row for row in cluster.view("shared").shared_topics["shared"]}[ANNOUNCEMENTS],
+            until=lambda row: row["publishers"] == {"hostA": 1, "hostB": 1},
+            timeout=20,
+            what="a publisher of the announcements on each agent",
+        )
+        assert announcements["problem"] == ""
         host_a.spin(2.0)
         host_b.spin(2.0)  # time for echoes to come round, were there any
         for heard in (heard_on_a, heard_on_b):

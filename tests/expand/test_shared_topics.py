@@ -175,3 +175,23 @@ def test_a_bridge_recognizes_its_own_echo_once():
     stale = Echoes(seconds=0.0)
     stale.brought_in(b"late")
     assert not stale.is_echo(b"late")
+
+
+def test_status_says_when_no_agent_has_seen_a_publisher_for_a_while():
+    from fleet.plan.view import shared_topic_rows
+
+    def states(**silent):
+        return {
+            agent: p.SharedTopicState(name="/t", publishers=0 if quiet is not None else 1, silent=quiet, age=age)
+            for agent, (quiet, age) in silent.items()
+        }
+
+    (row,) = shared_topic_rows({"/t": states(rack_a=(12.4, 0.5), rack_b=(30.0, 0.5))})
+    assert row["problem"] == "shared topic /t: no publisher on any agent for 12 s"
+    assert row["publishers"] == {"rack_a": 0, "rack_b": 0}
+    (row,) = shared_topic_rows({"/t": states(rack_a=(12.0, 0.5), rack_b=(None, 0.5))})
+    assert row["problem"] == "" and row["publishers"] == {"rack_a": 0, "rack_b": 1}
+    (row,) = shared_topic_rows({"/t": states(rack_a=(3.0, 0.5))})  # just started: not yet
+    assert row["problem"] == ""
+    (row,) = shared_topic_rows({"/t": states(rack_a=(12.0, 0.5), rack_b=(None, 60.0))})  # rack_b's watch is stale
+    assert row["problem"].endswith("for 12 s") and row["publishers"] == {"rack_a": 0}

@@ -1,0 +1,75 @@
+"""Who publishes the topics a fleet's templates share, as one agent's computer sees it.
+
+    python -m fleet.dataplane.watch CONFIG.json
+
+CONFIG: {"fleet", "topics": [topic names], "status_file": path}.  One process per fleet and
+agent whose robots share topics: a ROS node that is a discovery super client (it learns every
+endpoint of the graph without subscribing, so it receives no messages), counting each topic's
+publishers every second, leaving out the fleet's Zenoh bridge (it only republishes what came
+from another agent).  It writes {"wall_time", "topics": {name: {"publishers", "silent"}}} to
+the status file, `silent` being the seconds since a publisher was last seen (since the watch
+started, if never; null while there is one).  With the `dds` transport every watch sees the
+whole fleet's graph, with `zenoh` its own computer's: `fleet status` combines the agents'
+(fleet.plan.view.shared_topic_notes).  Exits 0 on SIGTERM/SIGINT, 2 on a bad config.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+PERIOD = 1.0  # s between counts
+
+
+def bridge_node_name(fleet: str) -> str:
+    """The ROS node name of a fleet's Zenoh bridge (fleet.dataplane.bridge)."""
+    return f"fleet_bridge_{fleet.replace('-', '_').replace('.', '_')}"
+
+
+def count_publishers(node, topic: str, bridge: str) -> int:
+    return sum(1 for info in node.get_publishers_info_by_topic(topic) if info.node_name != bridge)
+
+
+def main(argv: list[str]) -> int:
+    try:
+        config = json.loads(Path(argv[0]).read_text())
+        fleet, topics = str(config["fleet"]), [str(topic) for topic in config["topics"]]
+        status_file = Path(config["status_file"])
+    except (IndexError, OSError, ValueError, KeyError, TypeError) as error:
+        print(f"fleet watch: error: bad config: {' '.join(str(error).split())}", file=sys.stderr)
+        return 2
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from fleet.files import write_atomic
+    from fleet.runtime.processes import stop_on_signals
+
+    stop = stop_on_signals()
+    rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(f"fleet_watch_{fleet.replace('-', '_').replace('.', '_')}")
+    bridge = bridge_node_name(fleet)
+    started = time.monotonic()
+    last_seen: dict[str, float] = {}
+    try:
+        while True:
+            now = time.monotonic()
+            report = {}
+            for topic in topics:
+                publishers = count_publishers(node, topic, bridge)
+                if publishers:
+                    last_seen[topic] = now
+                silent = None if publishers else round(now - last_seen.get(topic, started), 1)
+                report[topic] = {"publishers": publishers, "silent": silent}
+            write_atomic(status_file, json.dumps({"wall_time": time.time(), "topics": report}))
+            if stop.wait(PERIOD):
+                break
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
