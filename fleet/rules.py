@@ -198,6 +198,13 @@ def template_name_problem(name: object) -> str | None:
     return None
 
 
+def service_node_name(service: str, fleet: str) -> str:
+    """The ROS node name of a fleet's service process on an agent (`bridge`: its Zenoh bridge,
+    `watch`: its shared topic watch, fleet.dataplane): a fleet name's '-' and '.' are not
+    allowed in node names."""
+    return f"fleet_{service}_{fleet.replace('-', '_').replace('.', '_')}"
+
+
 def topic_name_problem(name: object) -> str | None:
     """Why `name` cannot name a topic a template shares, or None: absolute (`/fleet/announcements`,
     fleet-wide) or relative to the robot's namespace (`pose`, `sensors/pose`), each token a ROS

@@ -173,11 +173,12 @@ def main(argv: list[str]) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
+    from fleet.rules import service_node_name
     from fleet.runtime.processes import stop_on_signals
 
     stop = stop_on_signals()
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(f"fleet_bridge_{fleet.replace('-', '_').replace('.', '_')}")
+    node = rclpy.create_node(service_node_name("bridge", fleet))
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop)

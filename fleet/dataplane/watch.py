@@ -20,12 +20,9 @@ import sys
 import time
 from pathlib import Path
 
+from fleet.rules import service_node_name
+
 PERIOD = 1.0  # s between counts
-
-
-def bridge_node_name(fleet: str) -> str:
-    """The ROS node name of a fleet's Zenoh bridge (fleet.dataplane.bridge)."""
-    return f"fleet_bridge_{fleet.replace('-', '_').replace('.', '_')}"
 
 
 def count_publishers(node, topic: str, bridge: str) -> int:
@@ -48,8 +45,8 @@ def main(argv: list[str]) -> int:
 
     stop = stop_on_signals()
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(f"fleet_watch_{fleet.replace('-', '_').replace('.', '_')}")
-    bridge = bridge_node_name(fleet)
+    node = rclpy.create_node(service_node_name("watch", fleet))
+    bridge = service_node_name("bridge", fleet)
     started = time.monotonic()
     last_seen: dict[str, float] = {}
     try:
