@@ -99,25 +99,19 @@ class RobotState:
 
 
 class _Robot:
-    """Common part: a body id, its model limits and the command to apply."""
+    """Common part: a body id and its model (the commands are PhysicsWorld's, by row)."""
 
     def __init__(self, client: int, name: str, model: ModelSpec, body: int) -> None:
         self.client = client
         self.name = name
         self.model = model
         self.body = body
-        self.linear = 0.0
-        self.angular = 0.0
         # pybullet reports a base's centre of mass; the robot's pose is its base frame, this far
         # from it (body frame; zero but for bodies whose merged links moved the centre of mass).
         self.com_offset = tuple(pb.getDynamicsInfo(body, -1, physicsClientId=client)[3])
 
-    def command(self, linear: float, angular: float) -> None:
-        lim_v, lim_w = self.model.max_linear_speed, self.model.max_angular_speed
-        self.linear = min(max(linear, -lim_v), lim_v)
-        self.angular = min(max(angular, -lim_w), lim_w)
-
-    def before_step(self, dt: float, gravity: float = 0.0) -> None:
+    def before_step(self, linear: float, angular: float) -> None:
+        """Apply the command (already within the model's limits) to the joints."""
         raise NotImplementedError
 
     def state(self) -> RobotState:
@@ -203,14 +197,14 @@ class HuskyRobot(_Robot):
         self.track = 2.0 * sum(wheel_y) / len(wheel_y)
         self._applied: tuple[float, float] | None = None
 
-    def before_step(self, dt: float, gravity: float = 0.0) -> None:
+    def before_step(self, linear: float, angular: float) -> None:
         # Velocity motors keep their target: only talk to pybullet when the command changes.
-        if self._applied == (self.linear, self.angular):
+        if self._applied == (linear, angular):
             return
-        self._applied = (self.linear, self.angular)
-        spread = self.angular * self.track / 2 * self.SKID_FACTOR
-        left = (self.linear - spread) / self.WHEEL_RADIUS
-        right = (self.linear + spread) / self.WHEEL_RADIUS
+        self._applied = (linear, angular)
+        spread = angular * self.track / 2 * self.SKID_FACTOR
+        left = (linear - spread) / self.WHEEL_RADIUS
+        right = (linear + spread) / self.WHEEL_RADIUS
         joints = self.left + self.right
         targets = [left] * len(self.left) + [right] * len(self.right)
         pb.setJointMotorControlArray(
@@ -246,11 +240,11 @@ class RacecarRobot(_Robot):
             raise SpawnError(f"robot '{name}': racecar URDF has no wheel or steering joints")
         self._applied: tuple[float, float] | None = None
 
-    def before_step(self, dt: float, gravity: float = 0.0) -> None:
-        if self._applied == (self.linear, self.angular):
+    def before_step(self, linear: float, angular: float) -> None:
+        if self._applied == (linear, angular):
             return
-        self._applied = (self.linear, self.angular)
-        v, w = self.linear, self.angular
+        self._applied = (linear, angular)
+        v, w = linear, angular
         steer = 0.0 if abs(v) < 1e-3 else math.atan(w * self.WHEELBASE / v)
         steer = min(max(steer, -self.MAX_STEER), self.MAX_STEER)
         c = self.client
@@ -300,6 +294,9 @@ class PhysicsWorld:
         self._light: list[LightRobot] = []
         self._light_rows = np.zeros(0, dtype=np.int64)  # rows of the light robots in poses()
         self._urdf: list[_Robot] = []
+        self._urdf_rows: list[int] = []
+        self._commands = np.zeros((0, 2))  # (n, 2) linear, angular by row, within the limits below
+        self._limits = np.zeros((0, 2))  # (n, 2) max linear and angular speed by row
         self.row: dict[str, int] = {}  # robot name -> its row in poses()
         self._bodies: list[int] = []
         self._com_offsets: np.ndarray | None = None  # (n, 3) _Robot.com_offset by row; None: all zero
@@ -361,13 +358,19 @@ class PhysicsWorld:
 
     def _sort_robots(self) -> None:
         self._poses = None
+        commands = dict(zip(self.row, self._commands.tolist(), strict=True))
         self.row = {name: i for i, name in enumerate(self.robots)}
+        self._commands = np.array([commands.get(name, (0.0, 0.0)) for name in self.row], dtype=float).reshape(-1, 2)
+        self._limits = np.array(
+            [(r.model.max_linear_speed, r.model.max_angular_speed) for r in self.robots.values()], dtype=float
+        ).reshape(-1, 2)
         self._bodies = [robot.body for robot in self.robots.values()]
         offsets = np.array([robot.com_offset for robot in self.robots.values()], dtype=float).reshape(-1, 3)
         self._com_offsets = offsets if offsets.any() else None
         self._light = [r for r in self.robots.values() if isinstance(r, LightRobot)]
         self._light_rows = np.array([self.row[r.name] for r in self._light], dtype=np.int64)
         self._urdf = [r for r in self.robots.values() if not isinstance(r, LightRobot)]
+        self._urdf_rows = [self.row[r.name] for r in self._urdf]
         gravity = GRAVITY if self._urdf else 0.0
         if gravity != self.gravity:
             self.gravity = gravity
@@ -386,15 +389,24 @@ class PhysicsWorld:
     # -- running ---------------------------------------------------------------------------------
 
     def command(self, name: str, linear: float, angular: float) -> None:
-        self.robots[name].command(linear, angular)
+        row = self.row[name]
+        self._commands[row] = np.clip((linear, angular), -self._limits[row], self._limits[row])
+
+    def command_all(self, commands: np.ndarray) -> None:
+        """(n, 2) linear and angular speed of every robot, by row."""
+        self._commands = np.clip(commands, -self._limits, self._limits)
 
     def step(self) -> None:
         dt, gravity = self.dt, self.gravity
-        self._ticks += 1
+        # Light robots are driven on the tick after every _light_every-th one: the world's own
+        # 60 Hz work (lidar, contacts) has just read the poses those ticks, so they are read once.
         if self._light and (gravity or self._ticks % self._light_every == 0):
             self._drive_light(dt, gravity)
-        for urdf_robot in self._urdf:
-            urdf_robot.before_step(dt, gravity)
+        self._ticks += 1
+        if self._urdf:
+            commands = self._commands.tolist()
+            for urdf_robot, row in zip(self._urdf, self._urdf_rows, strict=True):
+                urdf_robot.before_step(*commands[row])
         pb.stepSimulation(physicsClientId=self.client)
         self._poses = None
         self.sim_time += dt
@@ -416,12 +428,12 @@ class PhysicsWorld:
             )
         if tilted.any():
             self._poses = None
-        speeds = np.array([robot.linear for robot in self._light])
+        speeds, turns = self._commands[self._light_rows].T
         vx, vy = (speeds * np.cos(yaws)).tolist(), (speeds * np.sin(yaws)).tolist()
         vz = -gravity * dt
         reset = pb.resetBaseVelocity
-        for robot, x, y in zip(self._light, vx, vy, strict=True):
-            reset(robot.body, (x, y, vz), (0.0, 0.0, robot.angular), physicsClientId=client)
+        for robot, x, y, turn in zip(self._light, vx, vy, turns.tolist(), strict=True):
+            reset(robot.body, (x, y, vz), (0.0, 0.0, turn), physicsClientId=client)
 
     def _raw_poses(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions (n, 3) and quaternions (n, 4) of every robot, read once per step."""
