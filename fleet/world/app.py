@@ -98,6 +98,7 @@ class WorldApp:
         self._next_clock = 0.0
         self._next_odom = 0.0  # sim time: the earliest next_odom of all robots
         self._next_trail = 0.0  # sim time: the earliest next trail sample of all robots
+        self._channels: tuple | None = None  # physics.row it was made for, channels by row
         self._footprints: tuple | None = None  # physics.row it was made for, round rows, radii, other robots
         self._obstacle_scene: lidar.Scene | None = None  # what lidars see of the obstacles
         self._writer: StatusWriter | None = None  # started by the first run(), kept until close()
@@ -243,9 +244,8 @@ class WorldApp:
             bridge.sim_time = now
             if self._tick % self._slot_every == 0:
                 # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds at
-                # most one slot of latency and saves a call per robot per tick.
-                for name, robot in self.robots.items():
-                    physics.command(name, *robot.channel.current_command(now))
+                # most one slot of latency and saves work per robot per tick.
+                physics.command_all(bridge.current_commands(self._channels_by_row(), now))
         physics.step()
         self._tick += 1
         now = physics.sim_time
@@ -256,6 +256,13 @@ class WorldApp:
         if bridge is not None and now >= self._next_clock:
             self._next_clock = max(self._next_clock + 1.0 / self.spec.clock_rate, now)
             bridge.publish_clock(now)
+
+    def _channels_by_row(self) -> list:
+        """Each robot's ROS channel, in the order of physics rows."""
+        row = self.physics.row
+        if self._channels is None or self._channels[0] is not row:
+            self._channels = (row, [self.robots[name].channel for name in row])
+        return self._channels[1]
 
     def _odometry(self, now: float) -> None:
         """Odometry of the robots due now, read and published as one batch."""

@@ -13,7 +13,7 @@ import contextlib
 import math
 import threading
 import time
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import rclpy
@@ -43,8 +43,7 @@ def stamp(sim_time: float) -> Time:
     return Time(sec=sec, nanosec=min(round((sim_time - sec) * 1e9), 999_999_999))
 
 
-@dataclass
-class Command:
+class Command(NamedTuple):  # a tuple: the commands of all robots make one numpy array cheaply
     linear: float = 0.0
     angular: float = 0.0
     wall: float = -math.inf  # time.monotonic() when received
@@ -77,16 +76,10 @@ class RobotChannel:
     def _on_battery(self, msg: BatteryState) -> None:
         self.battery = None if math.isnan(msg.percentage) else float(msg.percentage)
 
-    # physics thread
     def current_command(self, sim_time: float) -> tuple[float, float]:
-        """The latest command, or zero once it is older than cmd_timeout in both sim and wall time
-        (a sim-time-only timeout would stop a wall-clock publisher in a faster-than-real-time
-        world; a wall-only one would let a stalled controller drive on in a slow world)."""
-        cmd = self.command
-        timeout = self.spec.cmd_timeout
-        if sim_time - cmd.sim > timeout and time.monotonic() - cmd.wall > timeout:
-            return 0.0, 0.0
-        return cmd.linear, cmd.angular
+        """This robot's share of RosBridge.current_commands."""
+        linear, angular = RosBridge.current_commands([self], sim_time)[0].tolist()
+        return linear, angular
 
     def link(self) -> dict[str, float | int | None]:
         """What says this robot's data flows: the age of its last command (wall seconds, None:
@@ -239,6 +232,18 @@ class RosBridge:
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="ros-executor", daemon=True)
         self._thread.start()
+
+    @staticmethod
+    def current_commands(channels: list[RobotChannel], sim_time: float) -> np.ndarray:
+        """(n, 2) linear and angular speed: each channel's latest command, or zero once it is older
+        than its cmd_timeout in both sim and wall time (a sim-time-only timeout would stop a
+        wall-clock publisher in a faster-than-real-time world; a wall-only one would let a stalled
+        controller drive on in a slow world)."""
+        commands = np.array([channel.command for channel in channels], dtype=float).reshape(-1, 4)
+        timeouts = np.array([channel.spec.cmd_timeout for channel in channels], dtype=float)
+        wall, sim = commands[:, 2], commands[:, 3]
+        expired = (sim_time - sim > timeouts) & (time.monotonic() - wall > timeouts)
+        return np.where(expired[:, None], 0.0, commands[:, :2])
 
     def _spin(self) -> None:
         with contextlib.suppress(ExternalShutdownException, KeyboardInterrupt):
