@@ -11,13 +11,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
-from fleet.dataplane.discovery import DiscoveryPlan
 from fleet.errors import ControlError
 from fleet.plan.desired import discovery_for, new_generation, plan_record, requests_for, with_planned_agents
 from fleet.plan.view import FleetView, RobotRow, build_view
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
+    from fleet.dataplane.discovery import DiscoveryPlan  # brings psutil: not on `fleet status`'s path
     from fleet.expand.expansion import Expansion
 
 POLL_INTERVAL = 0.1

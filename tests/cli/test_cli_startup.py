@@ -30,3 +30,21 @@ def test_help_lists_the_commands():
     assert result.returncode == 0
     for command in ("render", "run", "deploy", "status", "world"):
         assert command in result.stdout
+
+
+# What `fleet status` imports to ask, build and print the view: the protocol's pydantic and
+# zenoh, nothing of what expansion, the runtime or the world need.
+STATUS_PROBE = """
+import json, sys
+import fleet.cli.output, fleet.cli.status_view, fleet.client, fleet.plan
+print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in {heavy})))
+"""
+
+
+def test_status_imports_only_what_it_uses():
+    heavy = {"rclpy", "pybullet", "numpy", "matplotlib", "yaml", "jinja2", "psutil"}
+    result = subprocess.run(
+        [sys.executable, "-c", STATUS_PROBE.format(heavy=heavy)], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout) == []
