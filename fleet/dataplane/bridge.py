@@ -125,7 +125,8 @@ class Exporter:
 
     def stop(self) -> None:
         self._stop.set()
-        self._thread.join(timeout=5.0)
+        if self._thread.is_alive():  # never started when no router was reached before the stop
+            self._thread.join(timeout=5.0)
 
     def _on_token(self, sample) -> None:  # Zenoh thread
         import zenoh
@@ -238,9 +239,10 @@ class Importer:
         self._thread.start()
 
     def stop(self) -> None:
-        with contextlib.suppress(queue.Full):
-            self._queue.put(None, timeout=1.0)
-        self._thread.join(timeout=5.0)
+        if self._thread.is_alive():
+            with contextlib.suppress(queue.Full):
+                self._queue.put(None, timeout=1.0)
+            self._thread.join(timeout=5.0)
 
     def _queued(self, sample) -> None:  # Zenoh thread: queue and return
         try:
