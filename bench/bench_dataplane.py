@@ -20,7 +20,7 @@ Usage: .venv/bin/python bench/bench_dataplane.py [--seconds 20] [--output bench/
        [--only zenoh] [--robots 100] [--bridge-from CHECKOUT]
 
 --only zenoh measures the zenoh transport's flows alone; --robots picks the flows' sizes;
---bridge-from runs the bridges of another checkout (a before/after pair on one machine).
+--bridge-from runs the bridges and router of another checkout (a before/after pair on one machine).
 """
 
 from __future__ import annotations
@@ -102,8 +102,9 @@ class ZenohSetup(Setup):
     def __init__(self, name: str, domain: int, lan: Lan, bridge_from: Path | None = None):
         self.name, self.domain = name, domain
         self.bridge_env = dict(ros_environment(domain, discovery_server=f"127.0.0.1:{discovery_server_port(domain)}"))
-        if bridge_from is not None:
-            self.bridge_env["PYTHONPATH"] = str(bridge_from.resolve())
+        self.router_env = dict(os.environ)
+        if bridge_from is not None:  # its router too: the transport's settings are on both
+            self.bridge_env["PYTHONPATH"] = self.router_env["PYTHONPATH"] = str(bridge_from.resolve())
         self.lan: Lan = lan  # never None here: the transport needs two computers
         self.server = f"127.0.0.1:{discovery_server_port(domain)}"
         self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
@@ -129,7 +130,7 @@ class ZenohSetup(Setup):
             str(self.tmp / "router"),
         ]
         self.servers.append(
-            ServiceProcess("router", lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log")
+            ServiceProcess("router", lan.hosts["sim"].command(*router), self.router_env, self.tmp / "router.log")
         )
         for service in self.servers:
             service.keep_running()
@@ -311,7 +312,7 @@ def main() -> int:
     parser.add_argument("--output", type=Path, default=Path(__file__).resolve().parent / "results" / "dataplane.md")
     parser.add_argument("--only", choices=["zenoh"], help="only the zenoh transport's flows")
     parser.add_argument("--robots", type=int, action="append", choices=sorted(RECEIVERS), help="flow sizes")
-    parser.add_argument("--bridge-from", type=Path, help="run the bridges of this checkout")
+    parser.add_argument("--bridge-from", type=Path, help="run the bridges and router of this checkout")
     args = parser.parse_args()
     problem = netns_problem()
     if problem:

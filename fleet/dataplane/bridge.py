@@ -200,7 +200,6 @@ class Exporter:
                         batch_key(self.fleet, agent),
                         payload,
                         congestion_control=zenoh.CongestionControl.DROP,
-                        express=True,
                     )
                 except Exception:  # the session is being replaced: lost, as on a cut link
                     return

@@ -119,6 +119,9 @@ def _set_unless_user_set(config, key: str, value) -> None:
         config.insert_json5(key, json.dumps(value))
 
 
+ROUTER_QUEUE_BATCHES = 16
+
+
 def router_config(listen: list[str], user_config: Path | None = None):
     config = _base_config(user_config)
     config.insert_json5("mode", '"router"')
@@ -127,6 +130,10 @@ def router_config(listen: list[str], user_config: Path | None = None):
     else:
         _set_unless_user_set(config, "listen/endpoints", [DEFAULT_ENDPOINT])
     _common(config, ROUTER_LEASE_MS)
+    # 64 KiB batches queued towards each member (Zenoh's default: 2): the `zenoh` transport's
+    # bursts wait there while a busy computer's scheduler is late, instead of being dropped after
+    # 1 ms.  The wait before a drop stays Zenoh's: a dead link must not hold up the router.
+    _set_unless_user_set(config, "transport/link/tx/queue/size/data", ROUTER_QUEUE_BATCHES)
     return config
 
 
