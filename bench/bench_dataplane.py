@@ -20,7 +20,7 @@ Usage: .venv/bin/python bench/bench_dataplane.py [--seconds 20] [--output bench/
        [--only zenoh] [--robots 100] [--bridge-from CHECKOUT]
 
 --only zenoh measures the zenoh transport's flows alone; --robots picks the flows' sizes;
---bridge-from runs the bridges and router of another checkout (a before/after pair on one machine).
+--bridge-from runs the bridges and router of another checkout (with its .venv) (a before/after pair on one machine).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -90,6 +91,11 @@ class Setup:
         """After a flow: CPU seconds its bridges used (None: no bridges)."""
         return None
 
+    def bridged(self) -> float | None:
+        """After a flow: messages the importing bridge published over those the exporting one
+        sent (None: no bridges): what was lost between the bridges, apart from DDS on either side."""
+        return None
+
     def close(self) -> None:
         if self.ds:
             self.ds.stop()
@@ -102,9 +108,8 @@ class ZenohSetup(Setup):
     def __init__(self, name: str, domain: int, lan: Lan, bridge_from: Path | None = None):
         self.name, self.domain = name, domain
         self.bridge_env = dict(ros_environment(domain, discovery_server=f"127.0.0.1:{discovery_server_port(domain)}"))
-        self.router_env = dict(os.environ)
-        if bridge_from is not None:  # its router too: the transport's settings are on both
-            self.bridge_env["PYTHONPATH"] = self.router_env["PYTHONPATH"] = str(bridge_from.resolve())
+        # The other checkout's own interpreter: this one's editable install would win over PYTHONPATH.
+        self.python = str(bridge_from.resolve() / ".venv" / "bin" / "python") if bridge_from else sys.executable
         self.lan: Lan = lan  # never None here: the transport needs two computers
         self.server = f"127.0.0.1:{discovery_server_port(domain)}"
         self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
@@ -120,7 +125,7 @@ class ZenohSetup(Setup):
         ]
         self.endpoint = f"tcp/{lan.hosts['sim'].address}:7447"
         router = [
-            sys.executable,
+            self.python,
             "-m",
             "fleet",
             "router",
@@ -130,15 +135,17 @@ class ZenohSetup(Setup):
             str(self.tmp / "router"),
         ]
         self.servers.append(
-            ServiceProcess("router", lan.hosts["sim"].command(*router), self.router_env, self.tmp / "router.log")
+            ServiceProcess("router", lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log")
         )
         for service in self.servers:
             service.keep_running()
         time.sleep(2.0)
         self.ds = None
         self.bridges: list[ServiceProcess] = []
+        self.robots = 0
 
     def prepare(self, robots: int) -> None:
+        self.robots = robots
         routes = [
             # depth: the sender's (dataplane_peer), as fleet's routes carry the publisher's QoS
             TopicRoute(name=f"/r{k}/{topic}", type=kind, reliable=reliable, depth=100)
@@ -163,7 +170,7 @@ class ZenohSetup(Setup):
                     }
                 )
             )
-            command = self.lan.hosts[host].command(sys.executable, "-m", "fleet.dataplane.bridge", str(config))
+            command = self.lan.hosts[host].command(self.python, "-m", "fleet.dataplane.bridge", str(config))
             bridge = ServiceProcess(host, command, self.bridge_env, self.tmp / f"bridge-{host}-{robots}.log")
             bridge.keep_running()
             self.bridges.append(bridge)
@@ -177,6 +184,16 @@ class ZenohSetup(Setup):
             bridge.stop()
         self.bridges = []
         return used
+
+    def bridged(self) -> float | None:
+        # The last line of each bridge's log counts its messages ("stopping: N messages out, M in").
+        counts = {}
+        for host in ("rack", "sim"):
+            log = (self.tmp / f"bridge-{host}-{self.robots}.log").read_text()
+            found = re.findall(r"stopping: (\d+) messages out, (\d+) in", log)
+            counts[host] = tuple(map(int, found[-1])) if found else (0, 0)
+        out, received = counts["rack"][0], counts["sim"][1]
+        return received / out if out else None
 
     def close(self) -> None:
         for service in self.bridges + self.servers:
@@ -214,6 +231,7 @@ def flow(setup: Setup, robots: int, seconds: float) -> dict:
     cpu = setup.finish()
     return {
         "bridge_cpu_per_robot": None if cpu is None else cpu / (time.monotonic() - started) / robots,
+        "bridged": setup.bridged(),
         "p50": percentile(latencies, 0.5),
         "p99": percentile(latencies, 0.99),
         "rate": sent["odom_rate"],
@@ -352,15 +370,17 @@ def main() -> int:
         "and includes any queueing in the receivers.",
         "",
         "Bridge CPU: CPU time of both bridges (zenoh transport) over the run, per robot, in % of one core.",
+        "Through the bridges: messages the importing bridge published over those the exporting bridge",
+        "sent (from their logs); the rest of the loss is in DDS on either side.",
         "",
-        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) | bridge CPU per robot |",
-        "|---|---|---|---|---|---|---|---|",
+        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) | bridge CPU per robot | through the bridges |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for label, robots, r in rows_flow:
-        cpu = r["bridge_cpu_per_robot"]
+        cpu, bridged = r["bridge_cpu_per_robot"], r["bridged"]
         lines.append(
             f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | "
-            f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} |"
+            f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} | {'' if bridged is None else f'{bridged:.1%}'} |"
         )
     if rows_discovery:
         lines += discovery_lines(rows_discovery)
