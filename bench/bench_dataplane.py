@@ -108,8 +108,11 @@ class ZenohSetup(Setup):
     def __init__(self, name: str, domain: int, lan: Lan, bridge_from: Path | None = None):
         self.name, self.domain = name, domain
         self.bridge_env = dict(ros_environment(domain, discovery_server=f"127.0.0.1:{discovery_server_port(domain)}"))
-        # The other checkout's own interpreter: this one's editable install would win over PYTHONPATH.
-        self.python = str(bridge_from.resolve() / ".venv" / "bin" / "python") if bridge_from else sys.executable
+        # The other checkout's own interpreter (this one's editable install would win over
+        # PYTHONPATH), with -P: `-m` would otherwise find this checkout's fleet/ in the working directory.
+        self.python = (
+            [str(bridge_from.resolve() / ".venv" / "bin" / "python"), "-P"] if bridge_from else [sys.executable]
+        )
         self.lan: Lan = lan  # never None here: the transport needs two computers
         self.server = f"127.0.0.1:{discovery_server_port(domain)}"
         self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
@@ -125,7 +128,7 @@ class ZenohSetup(Setup):
         ]
         self.endpoint = f"tcp/{lan.hosts['sim'].address}:7447"
         router = [
-            self.python,
+            *self.python,
             "-m",
             "fleet",
             "router",
@@ -170,7 +173,7 @@ class ZenohSetup(Setup):
                     }
                 )
             )
-            command = self.lan.hosts[host].command(self.python, "-m", "fleet.dataplane.bridge", str(config))
+            command = self.lan.hosts[host].command(*self.python, "-m", "fleet.dataplane.bridge", str(config))
             bridge = ServiceProcess(host, command, self.bridge_env, self.tmp / f"bridge-{host}-{robots}.log")
             bridge.keep_running()
             self.bridges.append(bridge)
