@@ -48,7 +48,9 @@ print("sent", flush=True)
 sys.stdin.read()  # until the test closes stdin: latched data stays available
 """
 
-# A subscriber: prints one JSON line with what it received once nothing came for QUIET s.
+# A subscriber: says "ready" once matched with the importing bridge's publisher (a volatile
+# message sent before would be lost to it in DDS, bridge or not), then prints one JSON line with
+# what it received once nothing came for 3 s.
 SUBSCRIBE = """
 import json, sys, time, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy
@@ -61,8 +63,11 @@ qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 def on(msg):
     got.append(msg.data); last[0] = time.monotonic()
-node.create_subscription(String, topic, on, qos)
+sub = node.create_subscription(String, topic, on, qos)
 deadline = time.monotonic() + 60
+while time.monotonic() < deadline and not sub.get_publisher_count():  # the bridge's publisher
+    rclpy.spin_once(node, timeout_sec=0.05)
+print("ready", flush=True)
 while time.monotonic() < deadline and not (got and time.monotonic() - last[0] > 3.0):
     rclpy.spin_once(node, timeout_sec=0.05)
 print(json.dumps(got), flush=True)
@@ -122,6 +127,10 @@ def ros_process(script: str, domain_id: int, *args: str) -> subprocess.Popen:
     )
 
 
+def ready(subscriber: subprocess.Popen) -> None:
+    assert subscriber.stdout is not None and subscriber.stdout.readline().strip() == "ready"
+
+
 def received(subscriber: subprocess.Popen) -> list[str]:
     out, _ = subscriber.communicate(timeout=90)
     return json.loads(out.strip().splitlines()[-1])
@@ -148,6 +157,7 @@ def test_a_reliable_topic_crosses_whole_and_in_order(bridges, two_domains):
     bridges.start("sim_host", sim, exports=[], imports=ROUTES)
     rack_log = bridges.start("rack_a", rack, exports=ROUTES, imports=[])
     subscriber = ros_process(SUBSCRIBE, sim, "/a1/odom", "volatile")
+    ready(subscriber)
     publisher = ros_process(PUBLISH, rack, "/a1/odom", "1000", "volatile")
     try:
         assert received(subscriber) == [str(k) for k in range(1000)]
