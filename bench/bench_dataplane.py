@@ -17,6 +17,10 @@ is measured for comparison.  Runs:
   across two, LOCALHOST with ROS_STATIC_PEERS across two).
 
 Usage: .venv/bin/python bench/bench_dataplane.py [--seconds 20] [--output bench/results/dataplane.md]
+       [--only zenoh] [--robots 100] [--bridge-from CHECKOUT]
+
+--only zenoh measures the zenoh transport's flows alone; --robots picks the flows' sizes;
+--bridge-from runs the bridges and router of another checkout (with its .venv) (a before/after pair on one machine).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -86,6 +91,11 @@ class Setup:
         """After a flow: CPU seconds its bridges used (None: no bridges)."""
         return None
 
+    def bridged(self) -> float | None:
+        """After a flow: messages the importing bridge published over those the exporting one
+        sent (None: no bridges): what was lost between the bridges, apart from DDS on either side."""
+        return None
+
     def close(self) -> None:
         if self.ds:
             self.ds.stop()
@@ -95,8 +105,14 @@ class ZenohSetup(Setup):
     """The `zenoh` transport on two computers: DDS on each computer's loopback (a discovery server
     each), a router on sim, a bridge on each side carrying the robots' topics rack -> sim."""
 
-    def __init__(self, name: str, domain: int, lan: Lan):
+    def __init__(self, name: str, domain: int, lan: Lan, bridge_from: Path | None = None):
         self.name, self.domain = name, domain
+        self.bridge_env = dict(ros_environment(domain, discovery_server=f"127.0.0.1:{discovery_server_port(domain)}"))
+        # The other checkout's own interpreter (this one's editable install would win over
+        # PYTHONPATH), with -P: `-m` would otherwise find this checkout's fleet/ in the working directory.
+        self.python = (
+            [str(bridge_from.resolve() / ".venv" / "bin" / "python"), "-P"] if bridge_from else [sys.executable]
+        )
         self.lan: Lan = lan  # never None here: the transport needs two computers
         self.server = f"127.0.0.1:{discovery_server_port(domain)}"
         self.env = self.env_b = ros_environment(domain, discovery_server=self.server)
@@ -112,7 +128,7 @@ class ZenohSetup(Setup):
         ]
         self.endpoint = f"tcp/{lan.hosts['sim'].address}:7447"
         router = [
-            sys.executable,
+            *self.python,
             "-m",
             "fleet",
             "router",
@@ -129,10 +145,13 @@ class ZenohSetup(Setup):
         time.sleep(2.0)
         self.ds = None
         self.bridges: list[ServiceProcess] = []
+        self.robots = 0
 
     def prepare(self, robots: int) -> None:
+        self.robots = robots
         routes = [
-            TopicRoute(name=f"/r{k}/{topic}", type=kind, reliable=reliable)
+            # depth: the sender's (dataplane_peer), as fleet's routes carry the publisher's QoS
+            TopicRoute(name=f"/r{k}/{topic}", type=kind, reliable=reliable, depth=100)
             for k in range(robots)
             for topic, kind, reliable in (
                 ("odom", "nav_msgs/msg/Odometry", True),
@@ -145,6 +164,7 @@ class ZenohSetup(Setup):
                 json.dumps(
                     {
                         "fleet": "bench",
+                        "agent": host,
                         "connect": [self.endpoint],
                         "zenoh_config": None,
                         "exports": [],
@@ -153,8 +173,8 @@ class ZenohSetup(Setup):
                     }
                 )
             )
-            command = self.lan.hosts[host].command(sys.executable, "-m", "fleet.dataplane.bridge", str(config))
-            bridge = ServiceProcess(host, command, self.env, self.tmp / f"bridge-{host}.log")
+            command = self.lan.hosts[host].command(*self.python, "-m", "fleet.dataplane.bridge", str(config))
+            bridge = ServiceProcess(host, command, self.bridge_env, self.tmp / f"bridge-{host}-{robots}.log")
             bridge.keep_running()
             self.bridges.append(bridge)
         time.sleep(3.0)  # bridges up: sessions open, endpoints declared
@@ -167,6 +187,16 @@ class ZenohSetup(Setup):
             bridge.stop()
         self.bridges = []
         return used
+
+    def bridged(self) -> float | None:
+        # The last line of each bridge's log counts its messages ("stopping: N messages out, M in").
+        counts = {}
+        for host in ("rack", "sim"):
+            log = (self.tmp / f"bridge-{host}-{self.robots}.log").read_text()
+            found = re.findall(r"stopping: (\d+) messages out, (\d+) in", log)
+            counts[host] = tuple(map(int, found[-1])) if found else (0, 0)
+        out, received = counts["rack"][0], counts["sim"][1]
+        return received / out if out else None
 
     def close(self) -> None:
         for service in self.bridges + self.servers:
@@ -204,6 +234,7 @@ def flow(setup: Setup, robots: int, seconds: float) -> dict:
     cpu = setup.finish()
     return {
         "bridge_cpu_per_robot": None if cpu is None else cpu / (time.monotonic() - started) / robots,
+        "bridged": setup.bridged(),
         "p50": percentile(latencies, 0.5),
         "p99": percentile(latencies, 0.99),
         "rate": sent["odom_rate"],
@@ -262,74 +293,109 @@ def world_rtf(setup: Setup, robots: int, sim: float, where: str) -> float | None
     return None
 
 
+def measure_world(domain: int, lan: Lan) -> list[tuple[str, float | None]]:
+    setup = Setup("world", domain, lan)
+    rows = []
+    try:
+        for label, where in (
+            ("world and robots' subscribers on one computer", "a"),
+            ("subscribers on the other computer", "b"),
+        ):
+            rtf = world_rtf(setup, 100, 20.0, where)
+            print(label, rtf, flush=True)
+            rows.append((label, rtf))
+    finally:
+        setup.close()
+    return rows
+
+
+def measure_discovery(domain: int, lan: Lan) -> list[tuple[str, float | None]]:
+    rows = []
+    for label, network, with_server, static in (
+        ("one computer, LOCALHOST", None, False, False),
+        ("one computer, discovery server", None, True, False),
+        ("two computers, discovery server", lan, True, False),
+        ("two computers, LOCALHOST + ROS_STATIC_PEERS", lan, False, True),
+    ):
+        setup = Setup(label, domain, network, discovery=with_server, static_peers=static)
+        try:
+            converged = discovery(setup, 30, "b")
+        finally:
+            setup.close()
+        print(label, converged, flush=True)
+        rows.append((label, converged))
+    return rows
+
+
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--output", type=Path, default=Path(__file__).resolve().parent / "results" / "dataplane.md")
+    parser.add_argument("--only", choices=["zenoh"], help="only the zenoh transport's flows")
+    parser.add_argument("--robots", type=int, action="append", choices=sorted(RECEIVERS), help="flow sizes")
+    parser.add_argument("--bridge-from", type=Path, help="run the bridges and router of this checkout")
     args = parser.parse_args()
     problem = netns_problem()
     if problem:
         print(f"bench_dataplane: {problem}", file=sys.stderr)
         return 2
-    rows_flow, rows_discovery = [], []
+    sizes = args.robots or sorted(RECEIVERS)
+    setups = (("one computer", False), ("two computers (veth)", True), ("two computers, zenoh", True))
+    rows_flow, rows_discovery, rows_rtf = [], [], []
     with reserve_domain_id() as reservation, Lan(["sim", "rack"]) as lan:
         domain = reservation.domain_id
-        for label, network in (("one computer", None), ("two computers (veth)", lan), ("two computers, zenoh", lan)):
-            setup = ZenohSetup(label, domain, lan) if "zenoh" in label else Setup(label, domain, network)
+        for label, two in setups:
+            if args.only and args.only not in label:
+                continue
+            setup: Setup
+            if "zenoh" in label:
+                setup = ZenohSetup(label, domain, lan, args.bridge_from)
+            else:
+                setup = Setup(label, domain, lan if two else None)
             try:
-                for robots in (1, 100):
+                for robots in sizes:
                     result = flow(setup, robots, args.seconds)
                     print(label, robots, result, flush=True)
                     rows_flow.append((label, robots, result))
             finally:
                 setup.close()
-        setup = Setup("world", domain, lan)
-        rows_rtf = []
-        try:
-            for label, where in (
-                ("world and robots' subscribers on one computer", "a"),
-                ("subscribers on the other computer", "b"),
-            ):
-                rtf = world_rtf(setup, 100, 20.0, where)
-                print(label, rtf, flush=True)
-                rows_rtf.append((label, rtf))
-        finally:
-            setup.close()
-        for label, network, with_server, static in (
-            ("one computer, LOCALHOST", None, False, False),
-            ("one computer, discovery server", None, True, False),
-            ("two computers, discovery server", lan, True, False),
-            ("two computers, LOCALHOST + ROS_STATIC_PEERS", lan, False, True),
-        ):
-            setup = Setup(label, domain, network, discovery=with_server, static_peers=static)
-            try:
-                converged = discovery(setup, 30, "b")
-            finally:
-                setup.close()
-            print(label, converged, flush=True)
-            rows_discovery.append((label, converged))
+        if not args.only:
+            rows_rtf = measure_world(domain, lan)
+            rows_discovery = measure_discovery(domain, lan)
     lines = [
         "# Data plane: topics across computers (`dds` and `zenoh` transports)",
         "",
         f"Machine: {machine_description()}.",
-        f"Command: `.venv/bin/python bench/bench_dataplane.py --seconds {args.seconds:g}`.",
+        f"Command: `.venv/bin/python bench/bench_dataplane.py {' '.join(sys.argv[1:])}`.",
         "",
         "One sender process publishes every robot's topics; with 100 robots, four receiver processes",
         "take 25 robots each. Delivered: messages received over messages published. Latency is one-way",
         "and includes any queueing in the receivers.",
         "",
         "Bridge CPU: CPU time of both bridges (zenoh transport) over the run, per robot, in % of one core.",
+        "Through the bridges: messages the importing bridge published over those the exporting bridge",
+        "sent (from their logs); the rest of the loss is in DDS on either side.",
         "",
-        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) | bridge CPU per robot |",
-        "|---|---|---|---|---|---|---|---|",
+        "| where | robots | sender odom rate (Hz) | latency p50 (ms) | p99 (ms) | odom delivered (reliable) | scans delivered (best effort) | bridge CPU per robot | through the bridges |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for label, robots, r in rows_flow:
-        cpu = r["bridge_cpu_per_robot"]
+        cpu, bridged = r["bridge_cpu_per_robot"], r["bridged"]
         lines.append(
             f"| {label} | {robots} | {r['rate']:.1f} | {r['p50']:.2f} | {r['p99']:.2f} | {r['odom']:.1%} | "
-            f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} |"
+            f"{r['scan']:.1%} | {'' if cpu is None else f'{cpu:.2%}'} | {'' if bridged is None else f'{bridged:.1%}'} |"
         )
-    lines += [
+    if rows_discovery:
+        lines += discovery_lines(rows_discovery)
+    if rows_rtf:
+        lines += world_lines(rows_rtf)
+    args.output.write_text("\n".join(lines) + "\n")
+    print(f"wrote {args.output}")
+    return 0
+
+
+def discovery_lines(rows_discovery: list[tuple[str, float | None]]) -> list[str]:
+    lines = [
         "",
         "Discovery of 30 robot participants by a world participant:",
         "",
@@ -338,7 +404,11 @@ def main() -> int:
     ]
     for label, converged in rows_discovery:
         lines.append(f"| {label} | {'not converged in 120 s' if converged is None else f'{converged:.1f}'} |")
-    lines += [
+    return lines
+
+
+def world_lines(rows_rtf: list[tuple[str, float | None]]) -> list[str]:
+    lines = [
         "",
         "World with 100 light robots (as fast as possible, 20 s of sim time, `dds`), every robot's",
         "odometry and scans taken by four subscriber processes:",
@@ -348,9 +418,7 @@ def main() -> int:
     ]
     for label, rtf in rows_rtf:
         lines.append(f"| {label} | {'failed' if rtf is None else f'{rtf:.2f}'} |")
-    args.output.write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.output}")
-    return 0
+    return lines
 
 
 if __name__ == "__main__":

@@ -4,35 +4,70 @@ as the control plane).
 
     python -m fleet.dataplane.bridge CONFIG.json
 
-CONFIG: {"fleet", "connect": [endpoints], "zenoh_config": path or null, "exports": [TopicRoute],
-"imports": [TopicRoute]}.  An export subscribes to a local topic with raw=True (rclpy hands over
-the CDR bytes) and puts them on fleet/<fleet>/data/<topic>; an import subscribes to that key and
-publishes the bytes on the local topic (rclpy's publish takes serialized bytes).  So any message
-type crosses with no code of its own; the type name only creates the local endpoint.  Zenoh
-delivers a put only where a subscriber is declared, so a topic travels only to agents that
-import it.  Every bridge probes its path through the router once a second (the router echoes
-it) and opens a new session when a connected router has echoed nothing for ECHO_TIMEOUT.  The
-process exits 0 on SIGTERM/SIGINT, 2 on a bad config.
+CONFIG: {"fleet", "agent", "connect": [endpoints], "zenoh_config": path or null, "exports":
+[TopicRoute], "imports": [TopicRoute]}.
+
+Imports: for each topic it brings in, a bridge declares a liveliness token (protocol
+import_token_key) and publishes on the local topic, with the route's QoS, the serialized messages
+of the batches put on its agent's batch key.  Exports: a bridge subscribes to its local topics
+with raw=True (rclpy hands over the CDR bytes), learns from the tokens which agents bring in each
+topic, and sends every agent one batch (fleet.dataplane.batch) of whatever its topics received
+since the last wake-up: one Zenoh put for many messages, and no put at all for a topic no agent
+brings in.  Any message type crosses with no code of its own: the type name only creates the
+local endpoint.  A latched (transient local) topic's last `depth` messages are sent again to an
+agent whose token appears, as DDS does for a late subscriber.  A topic a bridge both exports and
+imports (one its templates share) would come back to it: what the importer publishes, the
+exporter's subscription hears, and it is not sent again (fleet.dataplane.echoes).
+
+Every bridge probes its path through the router once a second (the router echoes it) and opens
+a new session when a connected router has echoed nothing for ECHO_TIMEOUT.  The process exits 0
+on SIGTERM/SIGINT, 2 on a bad config.
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import importlib
 import json
 import logging
+import queue
 import sys
 import threading
 import time
 from pathlib import Path
 from typing import Any
 
+from fleet.dataplane.batch import BatchError, batches, messages, record
 from fleet.dataplane.echoes import Echoes
 
 log = logging.getLogger("fleet.bridge")
 STATS_PERIOD = 10.0  # s between the bridge's traffic lines in its log
 PROBE_PERIOD = 1.0  # s between probes of the path through the router
 ECHO_TIMEOUT = 5.0  # s without an echo, while a router is connected, before the session is replaced
+# The exporting side's own DDS queue per topic: it only has to hold what arrives between two
+# wake-ups of the exporter; the publisher's depth (what its subscribers see) is the route's.
+EXPORT_DEPTH = 100
+WAKE_PERIOD_NS = 100_000_000  # the exporter's longest wait, to notice a stop and pending resends
+# After a wake-up that found a burst (BURST messages or more), the exporter lets the next ones
+# gather for LINGER s: under load a wake-up and a put per few messages cost more CPU than the
+# messages; a lone robot's messages (one or two per wake-up) go at once.
+BURST, LINGER = 8, 0.005
+IMPORT_QUEUE = 1000  # batches received and not yet published (seconds of a fleet's traffic)
+# Every put uses Zenoh's `drop` congestion control, as rmw_zenoh does for KEEP_LAST topics: with
+# `block`, one agent whose link was cut filled the router's queue towards it and stalled every
+# bridge's traffic, the other agents' too, until the router gave up on that link.  A put waits
+# this long (µs) for room in a full queue before it is dropped (Zenoh's default: 1 ms, which a
+# busy computer's scheduler exceeds): momentary congestion delays messages instead of losing them,
+# a dead link costs each put this wait at most.
+WAIT_BEFORE_DROP_US = 50_000
+# Batches of 64 KiB queued towards the router (Zenoh's default: 2): room for a burst of a fleet's
+# traffic while this process or its link is briefly behind.
+QUEUE_BATCHES = 16
+SESSION_SETTINGS = {
+    "transport/link/tx/queue/congestion_control/drop/wait_before_drop": WAIT_BEFORE_DROP_US,
+    "transport/link/tx/queue/size/data": QUEUE_BATCHES,
+}
 
 
 def message_class(type_name: str):
@@ -41,14 +76,204 @@ def message_class(type_name: str):
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
-def ros_qos(route):
+def ros_qos(route, depth: int | None = None):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     return QoSProfile(
-        depth=route.depth,
+        depth=depth or route.depth,
         reliability=ReliabilityPolicy.RELIABLE if route.reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if route.transient_local else DurabilityPolicy.VOLATILE,
     )
+
+
+class Exporter:
+    """Local topics -> batches for the agents that bring them in.  Its own thread takes the
+    messages straight from the subscriptions (a wait set and rclpy's take, no executor: the
+    executor ran one Python callback per message and rebuilt its wait set for each)."""
+
+    def __init__(self, fleet: str, agent: str, routes, node, echoes: dict[str, Echoes]) -> None:
+        self.fleet, self.agent, self.node = fleet, agent, node
+        self._echoes = echoes  # topic -> what the importer published of it, not to be sent back
+        self.sent = 0  # messages put (a message for two agents counts twice)
+        self.puts = 0
+        self._session: Any = None
+        self._lock = threading.Lock()
+        self._importers: dict[str, set[str]] = {}  # topic -> agents that bring it in
+        self._resend: list[tuple[str, str]] = []  # (agent, latched topic) whose token just appeared
+        self._latched: dict[str, collections.deque[bytes]] = {
+            r.name: collections.deque(maxlen=r.depth) for r in routes if r.transient_local
+        }
+        self._subscriptions = [
+            (
+                node.create_subscription(
+                    message_class(r.type), r.name, lambda _: None, ros_qos(r, max(r.depth, EXPORT_DEPTH)), raw=True
+                ),
+                r.name,
+            )
+            for r in routes
+        ]
+        self._thread = threading.Thread(target=self._run, name="fleet-bridge-export", daemon=True)
+        self._stop = threading.Event()
+
+    def attach(self, session) -> list[Any]:
+        """Learn the importers anew from `session` (their tokens come again: history)."""
+        from fleet.wire.protocol import import_token_key
+
+        with self._lock:
+            self._importers, self._session = {}, session
+        pattern = import_token_key(self.fleet, "*", "**")
+        return [session.liveliness().declare_subscriber(pattern, self._on_token, history=True)]
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():  # never started when no router was reached before the stop
+            self._thread.join(timeout=5.0)
+
+    def _on_token(self, sample) -> None:  # Zenoh thread
+        import zenoh
+
+        from fleet.wire.protocol import imported_topic
+
+        found = imported_topic(self.fleet, sample.key_expr)
+        if found is None or found[0] == self.agent:  # our own imports: they are already local
+            return
+        agent, topic = found
+        with self._lock:
+            agents = self._importers.setdefault(topic, set())
+            if sample.kind == zenoh.SampleKind.DELETE:
+                agents.discard(agent)
+            else:
+                agents.add(agent)
+                if topic in self._latched:
+                    self._resend.append((agent, topic))
+
+    def _run(self) -> None:
+        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+        context = self.node.context
+        with contextlib.ExitStack() as in_use:  # rclpy's handles stay valid while entered
+            for subscription, _ in self._subscriptions:
+                in_use.enter_context(subscription.handle)
+            in_use.enter_context(context.handle)
+            wait_set = _rclpy.WaitSet(len(self._subscriptions), 0, 0, 0, 0, 0, context.handle)
+            by_pointer = {s.handle.pointer: (s.handle, s.msg_type, t.encode()) for s, t in self._subscriptions}
+            while not self._stop.is_set() and context.ok():
+                wait_set.clear_entities()
+                for subscription, _ in self._subscriptions:
+                    wait_set.add_subscription(subscription.handle)
+                wait_set.wait(WAKE_PERIOD_NS)
+                taken: list[tuple[bytes, bytes]] = []
+                for pointer in wait_set.get_ready_entities("subscription"):
+                    handle, kind, topic = by_pointer[pointer]
+                    while (message := handle.take_message(kind, True)) is not None:
+                        taken.append((topic, message[0]))
+                self._send(taken)
+                if len(taken) >= BURST:
+                    time.sleep(LINGER)
+
+    def _send(self, taken: list[tuple[bytes, bytes]]) -> None:
+        with self._lock:
+            importers = {topic: set(agents) for topic, agents in self._importers.items()}
+            resend, self._resend = self._resend, []
+            session = self._session
+        out: dict[str, list[bytes]] = collections.defaultdict(list)
+        for agent, topic in resend:
+            out[agent].extend(self._latched[topic])
+        for topic_bytes, message in taken:
+            topic = topic_bytes.decode()
+            echoes = self._echoes.get(topic)
+            if echoes is not None and echoes.is_echo(message):
+                continue
+            one = record(topic_bytes, message)
+            if topic in self._latched:
+                self._latched[topic].append(one)
+            for agent in importers.get(topic, ()):
+                out[agent].append(one)
+        if session is not None and out:
+            self._put(session, out)
+
+    def _put(self, session, out: dict[str, list[bytes]]) -> None:
+        import zenoh
+
+        from fleet.wire.protocol import batch_key
+
+        for agent, records in out.items():
+            for payload in batches(records):
+                try:
+                    session.put(
+                        batch_key(self.fleet, agent),
+                        payload,
+                        congestion_control=zenoh.CongestionControl.DROP,
+                    )
+                except Exception:  # the session is being replaced: lost, as on a cut link
+                    return
+                self.puts += 1
+            self.sent += len(records)
+
+
+class Importer:
+    """Batches for this agent -> local topics, published with each route's QoS.  Zenoh's thread
+    only queues a batch; this importer's own thread publishes its messages, so that the link
+    from the router is read on while DDS takes its time (else the router, finding its queue
+    towards us full, drops what follows)."""
+
+    def __init__(self, fleet: str, agent: str, routes, node, echoes: dict[str, Echoes]) -> None:
+        self.fleet, self.agent, self.routes = fleet, agent, list(routes)
+        self._echoes = echoes
+        self.received = 0
+        self.dropped = 0  # batches that found the queue full
+        self._malformed_logged = False
+        self._queue: queue.Queue[bytes | None] = queue.Queue(maxsize=IMPORT_QUEUE)
+        self._publishers = {
+            route.name: node.create_publisher(message_class(route.type), route.name, ros_qos(route))
+            for route in self.routes
+        }
+        self._thread = threading.Thread(target=self._run, name="fleet-bridge-import", daemon=True)
+
+    def attach(self, session) -> list[Any]:
+        """The batch subscriber first, then the tokens: an exporter that sees a token reaches us."""
+        from fleet.wire.protocol import batch_key, import_token_key
+
+        keep: list[Any] = [session.declare_subscriber(batch_key(self.fleet, self.agent), self._queued)]
+        liveliness = session.liveliness()
+        keep += [liveliness.declare_token(import_token_key(self.fleet, self.agent, r.name)) for r in self.routes]
+        return keep
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        if self._thread.is_alive():
+            with contextlib.suppress(queue.Full):
+                self._queue.put(None, timeout=1.0)
+            self._thread.join(timeout=5.0)
+
+    def _queued(self, sample) -> None:  # Zenoh thread: queue and return
+        try:
+            self._queue.put_nowait(sample.payload.to_bytes())
+        except queue.Full:
+            self.dropped += 1
+
+    def _run(self) -> None:
+        while (payload := self._queue.get()) is not None:
+            self._publish(payload)
+
+    def _publish(self, payload: bytes) -> None:
+        try:
+            for topic, message in messages(payload):
+                publisher = self._publishers.get(topic)
+                if publisher is not None:
+                    if (echoes := self._echoes.get(topic)) is not None:
+                        echoes.brought_in(message)
+                    publisher.publish(message)
+                    self.received += 1
+        except BatchError as error:
+            if not self._malformed_logged:  # once: a stranger putting on our key must not flood the log
+                log.warning("ignoring a malformed batch: %s", error)
+                self._malformed_logged = True
 
 
 class Bridge:
@@ -57,47 +282,47 @@ class Bridge:
 
     def __init__(self, fleet: str, agent: str, exports, imports, node) -> None:
         self.fleet, self.agent = fleet, agent
-        self.exports, self.imports = list(exports), list(imports)
-        self.counts = {"out": 0, "in": 0}
-        self.last_echo = 0.0  # time.monotonic() of the router's last echo of our probe
-        self._zenoh: dict[str, Any] = {}  # exported topic -> its Zenoh publisher on the current session
-        self._keep: list[Any] = []  # the current session's subscribers and publishers
         # Topics both sent and brought in (shared by templates): what we publish we hear again.
-        both = {route.name for route in self.exports} & {route.name for route in self.imports}
-        self._echoes = {name: Echoes() for name in both}
-        self._ros_publishers = {
-            route.name: node.create_publisher(message_class(route.type), route.name, ros_qos(route))
-            for route in self.imports
+        both = {route.name for route in exports} & {route.name for route in imports}
+        echoes = {name: Echoes() for name in both}
+        self.exporter = Exporter(fleet, agent, exports, node, echoes) if exports else None
+        self.importer = Importer(fleet, agent, imports, node, echoes) if imports else None
+        self.last_echo = 0.0  # time.monotonic() of the router's last echo of our probe
+        self._keep: list[Any] = []  # the current session's declarations
+
+    @property
+    def counts(self) -> dict[str, int]:
+        return {
+            "out": self.exporter.sent if self.exporter else 0,
+            "puts": self.exporter.puts if self.exporter else 0,
+            "dropped": self.importer.dropped if self.importer else 0,
+            "in": self.importer.received if self.importer else 0,
         }
-        for route in self.exports:
-            node.create_subscription(
-                message_class(route.type), route.name, self._sender(route.name), ros_qos(route), raw=True
-            )
 
     def attach(self, session) -> None:
         """Declare the Zenoh side on `session` (replacing what an earlier session had)."""
-        import zenoh
+        from fleet.wire.protocol import echo_keys
 
-        from fleet.wire.protocol import data_key, echo_keys
-
-        publishers = {}
         keep: list[Any] = []
-        for route in self.exports:
-            # DROP, as rmw_zenoh does for every KEEP_LAST topic (all of ours): with BLOCK, one agent
-            # whose link was cut filled the router's queue towards it and stalled every bridge's
-            # traffic, the other agents' too, until the router gave up on that link.
-            publishers[route.name] = session.declare_publisher(
-                data_key(self.fleet, route.name),
-                congestion_control=zenoh.CongestionControl.DROP,
-                allowed_destination=zenoh.Locality.REMOTE,  # not to our own import of a shared topic
-            )
-        for route in self.imports:
-            keep.append(session.declare_subscriber(data_key(self.fleet, route.name), self._receiver(route.name)))
+        if self.importer:
+            keep += self.importer.attach(session)
+        if self.exporter:
+            keep += self.exporter.attach(session)
         ping, pong = echo_keys(self.fleet, self.agent)
         keep.append(session.declare_subscriber(pong, self._echoed))
         self._ping = session.declare_publisher(ping)
-        self._zenoh, self._keep = publishers, [*keep, *publishers.values(), self._ping]
+        self._keep = [*keep, self._ping]
         self.last_echo = time.monotonic()  # the new session gets its full grace period
+
+    def start(self) -> None:
+        for side in (self.exporter, self.importer):
+            if side:
+                side.start()
+
+    def stop(self) -> None:
+        for side in (self.exporter, self.importer):
+            if side:
+                side.stop()
 
     def probe(self) -> None:
         with contextlib.suppress(Exception):  # a closed session: the next attach replaces it
@@ -105,34 +330,6 @@ class Bridge:
 
     def _echoed(self, sample) -> None:
         self.last_echo = time.monotonic()
-
-    def _sender(self, topic: str):
-        echoes = self._echoes.get(topic)
-
-        def send(data: bytes) -> None:  # rclpy executor thread
-            publisher = self._zenoh.get(topic)
-            if publisher is None or (echoes is not None and echoes.is_echo(data)):
-                return
-            try:
-                publisher.put(data)
-            except Exception:  # the session is being replaced: this message is lost, as on a cut link
-                return
-            self.counts["out"] += 1
-
-        return send
-
-    def _receiver(self, topic: str):
-        publisher = self._ros_publishers[topic]
-        echoes = self._echoes.get(topic)
-
-        def receive(sample) -> None:  # Zenoh thread: publish and return
-            data = sample.payload.to_bytes()
-            if echoes is not None:
-                echoes.brought_in(data)
-            publisher.publish(data)
-            self.counts["in"] += 1
-
-        return receive
 
 
 def _replace_session(session, bridge: Bridge, connect: list[str], zenoh_config: Path | None, stop: threading.Event):
@@ -143,17 +340,10 @@ def _replace_session(session, bridge: Bridge, connect: list[str], zenoh_config: 
     log.warning("the router has not echoed this bridge for %.0f s: opening a new Zenoh session", ECHO_TIMEOUT)
     with contextlib.suppress(Exception):  # a broken session may not close cleanly: drop it anyway
         session.close()
-    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop)
+    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop, SESSION_SETTINGS)
     if session is not None:
         bridge.attach(session)
     return session
-
-
-def _spin(executor) -> None:
-    from rclpy.executors import ExternalShutdownException
-
-    with contextlib.suppress(ExternalShutdownException):
-        executor.spin()
 
 
 def main(argv: list[str]) -> int:
@@ -170,7 +360,6 @@ def main(argv: list[str]) -> int:
         print(f"fleet bridge: error: bad config: {' '.join(str(error).split())}", file=sys.stderr)
         return 2
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
     from fleet.rules import service_node_name
@@ -178,14 +367,13 @@ def main(argv: list[str]) -> int:
 
     stop = stop_on_signals()
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(service_node_name("bridge", fleet))
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop)
+    # No executor: the exporter takes messages itself, and nothing else here needs spinning.
+    node = rclpy.create_node(service_node_name("bridge", fleet), start_parameter_services=False)
+    bridge = Bridge(fleet, agent, routes.exports, routes.imports, node)
+    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop, SESSION_SETTINGS)
     try:
         if session is None:
             return 0
-        bridge = Bridge(fleet, agent, routes.exports, routes.imports, node)
         bridge.attach(session)
         log.info(
             "bridge of fleet %s: %d topics out, %d in, through %s",
@@ -194,10 +382,7 @@ def main(argv: list[str]) -> int:
             len(routes.imports),
             ", ".join(connect),
         )
-        # spin() handles every ready callback of one wait; a spin_once loop would rebuild the wait
-        # set (hundreds of subscriptions) for each message.
-        spinner = threading.Thread(target=_spin, args=(executor,), name="fleet-bridge-ros", daemon=True)
-        spinner.start()
+        bridge.start()
         # A line every 10 s while messages flow or stop flowing: what `fleet logs` cannot show.
         last, next_stats = dict(bridge.counts), time.monotonic() + STATS_PERIOD
         while not stop.wait(PROBE_PERIOD):
@@ -211,18 +396,24 @@ def main(argv: list[str]) -> int:
                 now, next_stats = dict(bridge.counts), next_stats + STATS_PERIOD
                 if now != last or any(last.values()):
                     log.info(
-                        "last %.0f s: %d messages out, %d in (routers: %d)",
+                        "last %.0f s: %d messages out in %d puts, %d in, %d batches dropped (routers: %d)",
                         STATS_PERIOD,
                         now["out"] - last["out"],
+                        now["puts"] - last["puts"],
                         now["in"] - last["in"],
+                        now["dropped"] - last["dropped"],
                         routers,
                     )
                 last = now
         log.info(
-            "bridge of fleet %s stopping: %d messages out, %d in", fleet, bridge.counts["out"], bridge.counts["in"]
+            "bridge of fleet %s stopping: %d messages out, %d in, %d batches dropped (import queue full)",
+            fleet,
+            bridge.counts["out"],
+            bridge.counts["in"],
+            bridge.counts["dropped"],
         )
     finally:
-        executor.shutdown(timeout_sec=1.0)
+        bridge.stop()
         node.destroy_node()
         rclpy.try_shutdown()
         if session is not None:

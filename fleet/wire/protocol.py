@@ -17,7 +17,10 @@ Key space (every key lives under the fleet's name, so several fleets share one r
     fleet/<fleet>/desired/<agent>          put        ApplyRequest (deploy/down -> router registry)
                                            queryable  (router) DesiredQuery -> the stored ApplyRequests
     fleet/<fleet>/alive/agent/<agent>      liveliness token, one per fleet the agent serves
-    fleet/<fleet>/data/<ros topic>         put        a ROS message, CDR-serialized (`zenoh` transport)
+    fleet/<fleet>/data/-to/<agent>         put        a batch of CDR-serialized ROS messages for that
+                                                      agent's bridge (`zenoh` transport, fleet.dataplane.batch)
+    fleet/<fleet>/data/-imports/<agent>/<ros topic>
+                                           liveliness token: that agent's bridge brings in that topic
 
 An agent declares its queryables with `*` in the fleet chunk: it serves whatever fleet is
 deployed to it, and learns that it serves a fleet from the first apply it accepts.
@@ -123,8 +126,32 @@ def alive_key(fleet: str, agent: str) -> str:
 
 
 def data_key(fleet: str, topic: str) -> str:
-    """Where the `zenoh` transport carries a ROS topic ("/robot1/odom" -> fleet/f/data/robot1/odom)."""
+    """A ROS topic's place under the fleet's data keys ("/robot1/odom" -> fleet/f/data/robot1/odom)."""
     return f"fleet/{fleet}/data/{topic.strip('/')}"
+
+
+# Chunks that no ROS topic's key can have (a ROS name token never holds "-"): the `zenoh`
+# transport's own keys under fleet/<fleet>/data, which the agents' access rules already cover.
+BATCH_CHUNK, IMPORTS_CHUNK = "-to", "-imports"
+
+
+def batch_key(fleet: str, agent: str) -> str:
+    """Where bridges put the batches of ROS messages that `agent`'s bridge brings in."""
+    return data_key(fleet, f"{BATCH_CHUNK}/{agent}")
+
+
+def import_token_key(fleet: str, agent: str, topic: str) -> str:
+    """The liveliness token by which `agent`'s bridge says it brings in `topic`."""
+    return data_key(fleet, f"{IMPORTS_CHUNK}/{agent}/{topic.strip('/')}")
+
+
+def imported_topic(fleet: str, token_key: str) -> tuple[str, str] | None:
+    """(agent, topic) of an import token's key, None for any other key."""
+    prefix = data_key(fleet, IMPORTS_CHUNK) + "/"
+    agent, _, topic = str(token_key).removeprefix(prefix).partition("/")
+    if not str(token_key).startswith(prefix) or not agent or not topic:
+        return None
+    return agent, f"/{topic}"
 
 
 def agent_key_exprs(agent: str) -> list[str]:

@@ -119,6 +119,9 @@ def _set_unless_user_set(config, key: str, value) -> None:
         config.insert_json5(key, json.dumps(value))
 
 
+ROUTER_QUEUE_BATCHES = 16
+
+
 def router_config(listen: list[str], user_config: Path | None = None):
     config = _base_config(user_config)
     config.insert_json5("mode", '"router"')
@@ -127,10 +130,17 @@ def router_config(listen: list[str], user_config: Path | None = None):
     else:
         _set_unless_user_set(config, "listen/endpoints", [DEFAULT_ENDPOINT])
     _common(config, ROUTER_LEASE_MS)
+    # 64 KiB batches queued towards each member (Zenoh's default: 2): the `zenoh` transport's
+    # bursts wait there while a busy computer's scheduler is late, instead of being dropped after
+    # 1 ms.  The wait before a drop stays Zenoh's: a dead link must not hold up the router.
+    _set_unless_user_set(config, "transport/link/tx/queue/size/data", ROUTER_QUEUE_BATCHES)
     return config
 
 
-def client_config(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None):
+def client_config(
+    connect: list[str], user_config: Path | None = None, lease_ms: int | None = None, settings: dict | None = None
+):
+    """`settings`: Zenoh config keys -> values this client uses unless the user's file sets them."""
     config = _base_config(user_config)
     config.insert_json5("mode", '"client"')
     if connect:
@@ -144,6 +154,8 @@ def client_config(connect: list[str], user_config: Path | None = None, lease_ms:
         _set_unless_user_set(
             config, "connect/retry", {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
         )
+    for key, value in (settings or {}).items():
+        _set_unless_user_set(config, key, value)
     return config
 
 
@@ -157,11 +169,13 @@ def _common(config, lease_ms: int | None) -> None:
         _set_unless_user_set(config, "transport/link/tx/lease", lease_ms)
 
 
-def open_client(connect: list[str], user_config: Path | None = None, lease_ms: int | None = None) -> zenoh.Session:
+def open_client(
+    connect: list[str], user_config: Path | None = None, lease_ms: int | None = None, settings: dict | None = None
+) -> zenoh.Session:
     """Open a client session or raise ControlError (router unreachable or credentials refused)."""
     import zenoh
 
-    config = client_config(connect, user_config, lease_ms)
+    config = client_config(connect, user_config, lease_ms, settings)
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
@@ -184,13 +198,17 @@ def _hint(config, endpoints: list[str]) -> str:
 
 
 def open_client_retrying(
-    connect: list[str], user_config: Path | None, lease_ms: int | None, stop: threading.Event
+    connect: list[str],
+    user_config: Path | None,
+    lease_ms: int | None,
+    stop: threading.Event,
+    settings: dict | None = None,
 ) -> zenoh.Session | None:
     """For daemons: retry until the router answers (or `stop` is set, then None)."""
     delay = 0.2
     while not stop.is_set():
         try:
-            return open_client(connect, user_config, lease_ms)
+            return open_client(connect, user_config, lease_ms, settings)
         except ControlError:
             stop.wait(delay)
             delay = min(delay * 2, 2.0)
