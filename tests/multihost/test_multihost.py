@@ -188,6 +188,19 @@ class Fleet:
                 process.kill()
                 process.wait()
 
+    def stop_and_expect_nothing_left(self) -> None:
+        self.stop()
+        # Everything the router and agents started (nodes, worlds, discovery servers) carries this
+        # test's marker (conftest) through `ip netns exec`: stopping them must have ended it all.
+        poll(
+            lambda: processes_marked(os.environ[MARKER_VARIABLE]),
+            until=lambda leftovers: not leftovers,
+            timeout=10,
+            interval=0.2,
+            what="everything the fleet started to end",
+            describe=lambda leftovers: "left running: " + "; ".join(" ".join(p.cmdline()[:6]) for p in leftovers),
+        )
+
 
 @pytest.fixture(params=["dds", "zenoh"])
 def fleet(request, lan, tmp_path, ros_domain):
@@ -199,17 +212,7 @@ def fleet(request, lan, tmp_path, ros_domain):
     try:
         yield running
     finally:
-        running.stop()
-        # Everything the router and agents started (nodes, worlds, discovery servers) carries this
-        # test's marker (conftest) through `ip netns exec`: stopping them must have ended it all.
-        poll(
-            lambda: processes_marked(os.environ[MARKER_VARIABLE]),
-            until=lambda leftovers: not leftovers,
-            timeout=10,
-            interval=0.2,
-            what="everything the fleet started to end",
-            describe=lambda leftovers: "left running: " + "; ".join(" ".join(p.cmdline()[:6]) for p in leftovers),
-        )
+        running.stop_and_expect_nothing_left()
 
 
 def states(robots: dict[str, dict]) -> dict[str, tuple[str, str]]:

@@ -6,7 +6,6 @@ it, `fleet status` says that no one does."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 
@@ -14,7 +13,6 @@ import pytest
 import yaml
 
 from fleet.testing.poll import poll
-from fleet.testing.processes import MARKER_VARIABLE, processes_marked
 from tests.control.control_helpers import DATA, make_prefix
 from tests.multihost.test_multihost import Fleet, lan  # noqa: F401 (lan: the fixture)
 
@@ -63,14 +61,7 @@ def shared_fleet(request, lan, tmp_path, ros_domain):  # noqa: F811 (lan: the fi
     try:
         yield running
     finally:
-        running.stop()
-        poll(
-            lambda: processes_marked(os.environ[MARKER_VARIABLE]),
-            until=lambda leftovers: not leftovers,
-            timeout=10,
-            interval=0.2,
-            what="everything the fleet started to end",
-        )
+        running.stop_and_expect_nothing_left()
 
 
 def tool(fleet: Fleet, host: str, script: str) -> list[str]:
