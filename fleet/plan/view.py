@@ -140,6 +140,12 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     discovery: dict[str, list[dict[str, Any]]] = {}
     bridges: dict[str, dict[str, int | None]] = {}
     shared: dict[str, dict[str, dict[str, p.SharedTopicState]]] = {}  # fleet -> topic -> agent -> state
+    placed = {  # (fleet, robot) -> the agent the last deploy put it on
+        (registry.fleet, robot): agent
+        for registry in registries
+        if registry.plan is not None
+        for robot, agent in registry.plan.robots.items()
+    }
 
     for status in statuses:
         info = status.agent
@@ -165,7 +171,12 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         for topic in status.shared_topics:
             shared.setdefault(status.fleet, {}).setdefault(topic.name, {})[info.name] = topic
         for robot in status.robots:
-            robots[(status.fleet, robot.name)] = RobotRow(
+            key = (status.fleet, robot.name)
+            if key in robots and placed.get(key) != info.name:
+                # Reported twice while it moves (its old agent still stopping it): the agent the
+                # plan puts it on speaks for it, whatever order the replies came in.
+                continue
+            robots[key] = RobotRow(
                 fleet=status.fleet,
                 name=robot.name,
                 kind=robot.kind,

@@ -247,3 +247,12 @@ def test_ros_tools_get_the_fleets_domain_and_discovery_server():
     assert tool_environment(zenoh, "f", "b")["ROS_DISCOVERY_SERVER"] == "127.0.0.1:9153"
     with pytest.raises(FleetError, match="several fleets"):
         tool_environment(FleetView(agents=[], robots=[], domain_ids={"f": 1, "g": 2}), None, None)
+
+
+@pytest.mark.parametrize("order", [1, -1], ids=["new agent first", "old agent first"])
+def test_a_robot_moving_between_agents_is_shown_on_the_agent_the_plan_puts_it_on(order):
+    # Its old agent may still report it while stopping it; Zenoh delivers the replies in any order.
+    replies = [status("hostA", [unit("r3", uptime=1.0)]), status("hostB", [unit("r3", state="stopped")])][::order]
+    plan = p.PlanRecord(fleet="f", generation=2, robots={"r3": "hostA"}, deployed_at=0.0)
+    view = build_view(replies, [p.RegistryReply(fleet="f", plan=plan)], now=100.0)
+    assert [(row.name, row.agent) for row in view.robots] == [("r3", "hostA")]
