@@ -1,9 +1,13 @@
 """Run a launch file: start its processes, capture their output, respawn them, stop them cleanly.
 
-One thread per session (the "session thread") does every fork, every poll and every signal.
+One thread per session (the "session thread") does every fork, every reap and every signal.
 It lives until all its children are gone, which matters: the children ask the kernel to SIGKILL
 them when the thread that forked them exits (PR_SET_PDEATHSIG), so a SIGKILLed supervisor
 leaves no orphans, while a short-lived spawning thread would kill them at once.
+
+The session thread sleeps until something happens: a process exits (its pidfd turns readable),
+a respawn or a timer falls due, or stop() writes to the wake pipe.  An agent holds a session per
+robot, so an idle session must cost nothing: polling at 20 Hz, 1,000 of them took a core.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import datetime
 import os
+import select
 import shutil
 import signal
 import subprocess
@@ -31,7 +36,7 @@ BACKENDS = ("auto", "embedded", "ros2")
 STABLE_AFTER = 10.0  # a process that ran this long is healthy again: backoff starts over
 MIN_BACKOFF = 0.25  # base of the exponential backoff when respawn_delay is 0
 MAX_BACKOFF = 30.0
-POLL_INTERVAL = 0.05
+POLL_INTERVAL = 0.05  # while stopping: a process group has no fd to wait on, so it is polled
 
 # Process states, as status() reports them.
 STARTING = "starting"  # not spawned yet
@@ -84,6 +89,7 @@ class _Supervised:
         self.spec = spec
         self.output = output
         self.popen: subprocess.Popen | None = None
+        self.pidfd: int | None = None  # readable once the process has exited
         self.pump: threading.Thread | None = None  # reads its output
         self.state = STARTING
         self.restarts = 0
@@ -135,7 +141,8 @@ class LaunchSession:
         self.plan: LaunchPlan | None = None
         self._processes: list[_Supervised] = []
         self._lock = threading.Lock()
-        self._wake = threading.Event()
+        self._changed = threading.Condition(self._lock)  # notified after the session thread looked
+        self._wake_read, self._wake_write = -1, -1  # the pipe that wakes the session thread
         self._started = threading.Event()
         self._start_error: BaseException | None = None
         self._stop_requested = False
@@ -156,11 +163,13 @@ class LaunchSession:
                 echo = self._echo_for(spec.name)
             output = ProcessOutput(self.log_dir / f"{spec.name}.log", echo)
             self._processes.append(_Supervised(spec, output))
+        self._wake_read, self._wake_write = os.pipe2(os.O_NONBLOCK | os.O_CLOEXEC)
         self._thread = threading.Thread(target=self._run, name="fleet-session", daemon=True)
         self._thread.start()
         self._started.wait()
         if self._start_error is not None:
             self._thread.join()
+            self._close_wake_pipe()
             raise self._start_error
 
     def status(self) -> list[NodeStatus]:
@@ -202,16 +211,12 @@ class LaunchSession:
     def done(self) -> bool:
         """True when nothing runs and nothing will be respawned."""
         with self._lock:
-            return all(p.state in (EXITED, FAILED, STOPPED) for p in self._processes)
+            return self._done_locked()
 
     def wait(self, timeout: float | None = None) -> bool:
         """Wait until done(); False on timeout."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while not self.done():
-            if deadline is not None and time.monotonic() >= deadline:
-                return False
-            time.sleep(POLL_INTERVAL)
-        return True
+        with self._changed:
+            return self._changed.wait_for(self._done_locked, timeout)
 
     def failed(self) -> list[NodeStatus]:
         return [status for status in self.status() if status.state == FAILED]
@@ -222,12 +227,13 @@ class LaunchSession:
         if self._thread is None:
             return
         self._stop_requested = True
-        self._wake.set()
+        self._wake_up()
         self._thread.join()
         for process in self._processes:
             if process.pump is not None:
                 process.pump.join(timeout=1.0)  # the last lines a node printed
             process.output.close()
+        self._close_wake_pipe()
 
     def __enter__(self) -> LaunchSession:
         self.start()
@@ -235,6 +241,21 @@ class LaunchSession:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+    def _done_locked(self) -> bool:
+        return all(p.state in (EXITED, FAILED, STOPPED) for p in self._processes)
+
+    def _close_wake_pipe(self) -> None:
+        if self._wake_write >= 0:  # a second stop() finds it closed
+            os.close(self._wake_read)
+            os.close(self._wake_write)
+            self._wake_read, self._wake_write = -1, -1
+
+    def _wake_up(self) -> None:
+        if self._wake_write < 0:  # stopped already
+            return
+        with contextlib.suppress(BlockingIOError):  # full: the thread is due to wake anyway
+            os.write(self._wake_write, b"w")
 
     # -- preparation (caller's thread) --
 
@@ -324,6 +345,7 @@ class LaunchSession:
                 due = [process for process in self._processes if self._check(process, now)]
             for process in due:
                 self._respawn(process)
+            timeout = self._next_event(now)
             if self._stop_requested:
                 if stop_began is None:
                     stop_began = now
@@ -341,13 +363,47 @@ class LaunchSession:
                         if process.popen is not None and not process.finished():
                             signal_group(process.popen.pid, signum)
                     signals_sent = stage
-            self._wake.wait(POLL_INTERVAL)
-            self._wake.clear()
-        with self._lock:
+                timeout = POLL_INTERVAL
+            with self._changed:
+                self._changed.notify_all()
+            self._sleep(timeout)
+        with self._changed:
             for process in self._processes:
                 self._check(process, time.monotonic())
                 if process.state in (RUNNING, STOPPING, BACKOFF, STARTING):
                     process.state = STOPPED
+                self._close_pidfd(process)
+            self._changed.notify_all()
+
+    def _next_event(self, now: float) -> float | None:
+        """Seconds until the next respawn or timer is due (None: nothing is due, sleep until a
+        process exits or stop() wakes us)."""
+        with self._lock:
+            due_at = [
+                p.restart_at for p in self._processes if p.state in (STARTING, BACKOFF) and p.restart_at is not None
+            ]
+            unwatched = any(p.state == RUNNING and p.pidfd is None for p in self._processes)
+        timeout = max(0.0, min(due_at) - now) if due_at else None
+        if unwatched:  # no pidfd (a kernel before 5.3): notice its exit by polling
+            timeout = POLL_INTERVAL if timeout is None else min(timeout, POLL_INTERVAL)
+        return timeout
+
+    def _sleep(self, timeout: float | None) -> None:
+        """Until a watched process exits, the wake pipe is written, or `timeout` seconds pass."""
+        poller = select.poll()
+        poller.register(self._wake_read, select.POLLIN)
+        for process in self._processes:
+            if process.pidfd is not None:
+                poller.register(process.pidfd, select.POLLIN)
+        poller.poll(None if timeout is None else timeout * 1000.0)
+        with contextlib.suppress(BlockingIOError):
+            os.read(self._wake_read, 4096)
+
+    @staticmethod
+    def _close_pidfd(process: _Supervised) -> None:
+        if process.pidfd is not None:
+            os.close(process.pidfd)
+            process.pidfd = None
 
     def _respawn(self, process: _Supervised) -> None:
         # An exception must not end this thread: its exit would SIGKILL every other node.
@@ -362,8 +418,13 @@ class LaunchSession:
         spec = process.spec
         env = self._child_env(spec.env, spec.env_unset)
         popen = spawn(spec.cmd, env, cwd=spec.cwd)
+        try:
+            pidfd: int | None = os.pidfd_open(popen.pid)  # only this thread reaps: it cannot be reaped yet
+        except OSError:  # no pidfd on this kernel: _next_event polls instead
+            pidfd = None
         with self._lock:
             process.popen = popen
+            process.pidfd = pidfd
             process.state = RUNNING
             process.exit_code = None
             process.started_at = time.monotonic()
@@ -376,6 +437,7 @@ class LaunchSession:
         when the process is due to be started again."""
         popen = process.popen
         if process.state in (RUNNING, STOPPING) and popen is not None and popen.poll() is not None:
+            self._close_pidfd(process)
             process.exit_code = popen.returncode
             if self._stop_requested:
                 process.state = STOPPED

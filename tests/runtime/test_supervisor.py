@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import pytest
 
@@ -169,6 +170,33 @@ def test_exit_without_respawn_is_final(prefix, write_launch, tmp_path):
         assert states == {"ok": ("exited", 0), "bad": ("failed", 4)}
         assert [status.name for status in session.failed()] == ["bad"]
         assert session.tail("bad") == ["broken"]
+
+
+def wakeups(thread) -> int:
+    """How many times `thread` has gone to sleep and been woken (its voluntary context switches)."""
+    status = Path(f"/proc/self/task/{thread.native_id}/status").read_text()
+    return int(next(line.split()[1] for line in status.splitlines() if line.startswith("voluntary_ctxt_switches")))
+
+
+def test_an_idle_session_sleeps_until_something_happens(prefix, write_launch, tmp_path):
+    # An agent holds a session per robot: one that polled 20 times a second cost a core at 1,000.
+    prefix.add("sleeper", SLEEPER)
+    prefix.add("quits", "#!/bin/sh\nsleep 1.5\nexit 3\n")
+    session = session_for(
+        prefix,
+        write_launch,
+        tmp_path,
+        "- node: {pkg: demo, exec: sleeper, name: a}\n"
+        "- node: {pkg: demo, exec: sleeper, name: b}\n"
+        "- node: {pkg: demo, exec: quits, name: c}\n",
+    )
+    with session:
+        before = wakeups(session._thread)
+        time.sleep(1.0)
+        assert wakeups(session._thread) - before <= 2  # polling at 20 Hz: about 20
+        # ... and it still notices an exit at once.
+        poll(lambda: session.failed(), timeout=10, interval=0.02, what="c's exit noticed")
+        assert [(s.name, s.exit_code) for s in session.failed()] == [("c", 3)]
 
 
 def test_stop_sends_sigterm_to_a_child_ignoring_sigint(prefix, write_launch, tmp_path):
