@@ -171,7 +171,14 @@ def _print_outcome(outcome, out) -> None:
         out.print("nothing changed: every robot was already running this description (no restarts)")
     if outcome.superseded_by:
         out.print(f"[yellow]superseded:[/yellow] a later deploy (generation {outcome.superseded_by}) won")
-    if outcome.view is not None:
+    if outcome.nothing_changed and outcome.ok and outcome.view is not None:
+        # The table would repeat `fleet status` row for row (seconds of output at 1,000 robots).
+        robots = [row for row in outcome.view.robots if row.kind == "robot"]
+        worlds = len(outcome.view.robots) - len(robots)
+        where = f"{len(robots)} robot(s)" + (" and the world" if worlds else "")
+        agents = len({row.agent for row in outcome.view.robots})
+        out.print(f"{where} running on {agents} agent(s); `fleet status` shows them")
+    elif outcome.view is not None:
         print_view(outcome.view, out, agents=False)
     if outcome.discovery is not None and outcome.discovery.note:
         out.print(f"[yellow]note:[/yellow] {outcome.discovery.note}")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -57,13 +56,12 @@ class ControlClient:
         for reply in replies:
             if reply.ok is None:
                 continue
-            data = reply.ok.payload.to_bytes()
-            kind = _kind(data)
             try:
-                if kind == "status":
-                    statuses.append(p.decode(data, p.StatusReply))
-                elif kind == "registry":
-                    registries.append(p.decode(data, p.RegistryReply))
+                data = p.parse(reply.ok.payload.to_bytes())
+                if data.get("kind") == "status":
+                    statuses.append(p.validate(data, p.StatusReply))
+                elif data.get("kind") == "registry":
+                    registries.append(p.validate(data, p.RegistryReply))
             except p.ProtocolError:
                 continue  # another version of fleet on the same router: skip, don't crash
         return statuses, registries
@@ -116,13 +114,6 @@ class ControlClient:
         """Leave each agent's desired state with the router: an agent that was away fetches it."""
         for request in requests:
             self.session.put(p.desired_key(request.fleet, request.agent), p.encode(request))
-
-
-def _kind(data: bytes) -> str | None:
-    try:
-        return json.loads(data).get("kind")
-    except (ValueError, AttributeError):
-        return None
 
 
 def _one_reply(handler: Iterable[zenoh.Reply], model: type[p.MessageT], what: str) -> p.MessageT:

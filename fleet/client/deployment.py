@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
 from fleet.errors import ControlError
-from fleet.plan.desired import discovery_for, new_generation, plan_record, requests_for, with_planned_agents
+from fleet.plan.desired import (
+    discovery_for,
+    held_generation,
+    new_generation,
+    plan_record,
+    requests_for,
+    with_planned_agents,
+)
 from fleet.plan.view import FleetView, RobotRow, build_view
 from fleet.wire import protocol as p
 
@@ -31,6 +38,9 @@ class Outcome:
     superseded_by: int | None = None
     timed_out: bool = False
     discovery: DiscoveryPlan | None = None
+    # Every agent already held exactly this desired state: nothing was sent (`replies` is empty
+    # and `generation` is the one they hold).
+    already_applied: bool = False
 
     @property
     def unreachable(self) -> dict[str, str]:
@@ -42,6 +52,8 @@ class Outcome:
 
     @property
     def nothing_changed(self) -> bool:
+        if self.already_applied:
+            return True
         accepted = [r for r in self.replies.values() if isinstance(r, p.ApplyReply) and r.accepted]
         return bool(accepted) and len(accepted) == len(self.replies) and all(r.changes.nothing for r in accepted)
 
@@ -57,6 +69,7 @@ class Outcome:
             "ok": self.ok,
             "generation": self.generation,
             "nothing_changed": self.nothing_changed,
+            "sent": not self.already_applied,
             "superseded_by": self.superseded_by,
             "timed_out": self.timed_out,
             "discovery": None
@@ -89,20 +102,16 @@ def deploy(
     before = build_view(statuses, registries, time.time())
     outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before))
     requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
-    outcome.replies = client.send_applies(requests)
-    # After the applies (an agent that took its apply directly then holds this generation already):
-    # the router keeps each desired state for agents that were away, and the plan for status.
-    client.put_desired(
-        with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
-    )
-    client.put_plan(plan_record(expansion, outcome.generation))
-    for reply in outcome.replies.values():
-        if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
-            outcome.superseded_by = max(outcome.superseded_by or 0, reply.current_generation)
+    held = held_generation(requests, statuses)
+    if held is not None:  # a no-op redeploy: the agents, the router's copy and the plan are as wanted
+        outcome.generation, outcome.already_applied = held, True
+    else:
+        _send(client, expansion, requests, registries, outcome)
     wanted = {b.name for b in expansion.bundles if not isinstance(outcome.replies.get(b.agent), ControlError)}
     deadline = time.monotonic() + timeout
     while True:
-        statuses, registries = client.status(expansion.fleet)
+        if not outcome.already_applied or outcome.view is not None:  # else the status above is fresh
+            statuses, registries = client.status(expansion.fleet)
         view = build_view(statuses, registries, time.time())
         outcome.view = view.only(expansion.fleet)
         for (_fleet, _agent), generation in view.generations.items():
@@ -119,6 +128,25 @@ def deploy(
             break
         time.sleep(POLL_INTERVAL)
     return outcome
+
+
+def _send(
+    client: ControlClient,
+    expansion: Expansion,
+    requests: list[p.ApplyRequest],
+    registries: list[p.RegistryReply],
+    outcome: Outcome,
+) -> None:
+    outcome.replies = client.send_applies(requests)
+    # After the applies (an agent that took its apply directly then holds this generation already):
+    # the router keeps each desired state for agents that were away, and the plan for status.
+    client.put_desired(
+        with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
+    )
+    client.put_plan(plan_record(expansion, outcome.generation))
+    for reply in outcome.replies.values():
+        if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
+            outcome.superseded_by = max(outcome.superseded_by or 0, reply.current_generation)
 
 
 def _settled(view: FleetView, wanted: set[str], generation: int) -> bool:

@@ -1,7 +1,14 @@
 """The plan (pure): what should run where (one desired state per agent, from an Expansion), what
 runs where now (the fleet view, from status replies), and the difference between the two."""
 
-from fleet.plan.desired import discovery_for, new_generation, plan_record, requests_for, with_planned_agents
+from fleet.plan.desired import (
+    discovery_for,
+    held_generation,
+    new_generation,
+    plan_record,
+    requests_for,
+    with_planned_agents,
+)
 from fleet.plan.diff import DiffRow, diff
 from fleet.plan.view import WORLD_SILENT, FleetView, RobotRow, build_view, locate_world
 
@@ -13,6 +20,7 @@ __all__ = [
     "build_view",
     "diff",
     "discovery_for",
+    "held_generation",
     "locate_world",
     "new_generation",
     "plan_record",

@@ -62,6 +62,23 @@ def requests_for(
     return requests
 
 
+def held_generation(requests: list[p.ApplyRequest], statuses: list[p.StatusReply]) -> int | None:
+    """The generation every agent of `requests` already holds with exactly this content, or None
+    when sending them could change something (an agent holds other content or another
+    generation, holds nothing, did not answer, or another agent also serves the fleet).  Then a
+    deploy has nothing to send."""
+    if not requests:
+        return None
+    fleet = requests[0].fleet
+    held = {status.agent.name: status for status in statuses if status.fleet == fleet and status.content_digest}
+    if set(held) != {request.agent for request in requests}:
+        return None
+    if any(held[request.agent].content_digest != request.content_digest() for request in requests):
+        return None
+    generations = {status.generation for status in held.values()}
+    return generations.pop() if len(generations) == 1 else None
+
+
 def _world_agent(expansion: Expansion) -> str | None:
     return next((bundle.agent for bundle in expansion.bundles if bundle.kind == "world"), None)
 

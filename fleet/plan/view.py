@@ -15,7 +15,7 @@ a short while after its nodes started) with the reason in words.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from fleet.wire import protocol as p
@@ -121,14 +121,20 @@ class FleetView:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "agents": [asdict(agent) for agent in self.agents],
-            "robots": [asdict(robot) for robot in self.robots],
-            "worlds": [asdict(world) for world in self.worlds],
+            "agents": [_row_json(agent) for agent in self.agents],
+            "robots": [_row_json(robot) for robot in self.robots],
+            "worlds": [_row_json(world) for world in self.worlds],
             "discovery": self.discovery,
             "bridges": self.bridges,
             "shared_topics": self.shared_topics,
             "all_running": self.all_running,
         }
+
+
+def _row_json(row: AgentRow | RobotRow | WorldRow) -> dict[str, Any]:
+    # Rows hold JSON values only, so a shallow copy does (asdict deep-copies each node's dict:
+    # 40 ms of `fleet status --json` at 1,000 robots).
+    return {column.name: getattr(row, column.name) for column in fields(row)}
 
 
 def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply], now: float) -> FleetView:

@@ -581,6 +581,7 @@ class Agent:
             return reply
         reply.generation = state.generation
         reply.reconciled_generation = reconciled
+        reply.content_digest = state.content_digest
         reply.domain_id = state.request.domain_id
         if discovery is not None:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid

@@ -8,6 +8,7 @@ either the old or the new desired state, never half of one.
 from __future__ import annotations
 
 import json
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,10 @@ class FleetState(BaseModel):
     @property
     def generation(self) -> int:
         return self.request.generation
+
+    @cached_property
+    def content_digest(self) -> str:  # a state is replaced, never changed: computed once
+        return self.request.content_digest()
 
 
 class AgentStore:

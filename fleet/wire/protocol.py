@@ -327,6 +327,14 @@ class ApplyRequest(Message):
             raise ValueError(address_port_problem(value))
         return value
 
+    def content_digest(self) -> str:
+        """Hash of what this desired state asks for: equal on two requests when applying the one
+        after the other changes nothing (the generation and the send time are left out; each
+        bundle counts by its digests, which cover its files)."""
+        content = self.model_dump(mode="json", exclude={"v", "kind", "generation", "sent_at", "bundles"})
+        content["bundles"] = [(bundle.name, bundle.digest, bundle.hot_digest) for bundle in self.bundles]
+        return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+
     @model_validator(mode="after")
     def _unique_bundle_names(self) -> ApplyRequest:
         names = [bundle.name for bundle in self.bundles]
@@ -551,6 +559,9 @@ class StatusReply(Message):
     shared_topics: list[SharedTopicState] = []  # the shared topics this agent watches (fleet.dataplane.watch)
     robots: list[RobotState] = []
     world: WorldSummary | None = None  # when this agent runs the fleet's world and it has reported
+    # ApplyRequest.content_digest of the desired state held: a deploy that would send the same
+    # to every agent has nothing to send ("" when the agent holds none for this fleet).
+    content_digest: str = ""
     time: float
 
 
@@ -690,6 +701,11 @@ MessageT = TypeVar("MessageT", bound=Message)
 
 def decode(payload: bytes | None, model: type[MessageT]) -> MessageT:
     """Parse and validate one message; raise ProtocolError with a readable reason."""
+    return validate(parse(payload), model)
+
+
+def parse(payload: bytes | None) -> dict[str, Any]:
+    """The JSON object of one message of this protocol version (its "kind" still unchecked)."""
     if payload is None:
         raise ProtocolError("empty message", "malformed")
     if len(payload) > MAX_MESSAGE_BYTES:
@@ -704,6 +720,11 @@ def decode(payload: bytes | None, model: type[MessageT]) -> MessageT:
         raise ProtocolError("a message must be a JSON object", "malformed")
     if data.get("v") != VERSION:
         raise ProtocolError(f"unsupported protocol version {data.get('v')!r} (this side speaks {VERSION})", "version")
+    return data
+
+
+def validate(data: dict[str, Any], model: type[MessageT]) -> MessageT:
+    """`model` from a parsed message; an error reply or another kind raises ProtocolError."""
     expected_kind = model.model_fields["kind"].default
     if data.get("kind") == "error" and model is not ErrorReply:
         reply = ErrorReply.model_validate(data)

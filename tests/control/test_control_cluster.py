@@ -53,6 +53,19 @@ def test_redeploy_unchanged_restarts_nothing(cluster):
     assert all(row.generation == outcome.generation for row in after.robots)
 
 
+def test_redeploy_unchanged_sends_nothing(cluster):
+    spec = cluster.spec()
+    first = cluster.deploy(spec)
+    again = cluster.deploy(spec)
+    # The agents held this content already: no apply went out, so the generation is the first one.
+    assert again.ok and again.already_applied and again.replies == {}
+    assert again.generation == first.generation
+    assert {row.generation for row in cluster.view("tiny").robots} == {first.generation}
+    # A change still goes out.
+    changed = cluster.deploy(spec, sets=["robot2.sleeper.period=2.0"])
+    assert changed.ok and not changed.already_applied and changed.generation > first.generation
+
+
 def test_cli_redeploy_says_nothing_changed_and_status_exits_zero(cluster):
     spec = cluster.spec()
     cluster.deploy(spec)
