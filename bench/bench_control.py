@@ -251,6 +251,8 @@ def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 1
             spec = cluster.spec(agents={a: {} for a in agents}, robots=robots)
             outcome = cluster.deploy(spec, timeout=120 + n_robots)
             assert outcome.ok, outcome.replies
+            settle()
+            idle_cpu = agents_cpu(cluster.root)
             env = user_env(cluster.env)
             cli = []
             for _ in range(runs):
@@ -273,12 +275,44 @@ def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 1
                 "cli": cli,
                 "query": query,
                 "noop_100": noop,
+                "idle_cpu": idle_cpu,
                 "agents": n_agents,
                 "robots": n_robots,
                 "idle": idle,
             }
         finally:
             cluster.stop()
+
+
+def machine_busy(seconds: float = 3.0) -> float:
+    """CPU in use on the whole machine over `seconds`, in cores."""
+    import psutil
+
+    return psutil.cpu_percent(interval=seconds) / 100.0 * (psutil.cpu_count() or 1)
+
+
+def settle(limit: float = 180.0) -> None:
+    """Wait until the agents' start-up is over (under half a core busy), so that the start-up of
+    100 agents is not measured as the cost of a status."""
+    deadline = time.monotonic() + limit
+    while machine_busy() > 0.5 and time.monotonic() < deadline:
+        pass
+
+
+def agents_cpu(root: Path, seconds: float = 10.0) -> float:
+    """CPU of the router and agents under `root` (idle, robots deployed) over `seconds`, in cores."""
+    import psutil
+
+    mine = [proc for proc in psutil.process_iter(["cmdline"]) if str(root) in " ".join(proc.info["cmdline"] or [])]
+    before = {proc: sum(proc.cpu_times()[:2]) for proc in mine}
+    time.sleep(seconds)
+    used = 0.0
+    for proc, start in before.items():
+        try:
+            used += sum(proc.cpu_times()[:2]) - start
+        except psutil.NoSuchProcess:
+            continue
+    return used / seconds
 
 
 def baseline(runs: int, results: dict) -> None:
@@ -350,6 +384,10 @@ def report(results: dict, runs: int) -> str:
             f"| the status query alone (one wildcard get, {status['agents']} agents + registry replying) | {med(status['query'])} | {spread(status['query'])} | |",
             f"| no-op redeploy of the {status['robots']}-robot fleet (CLI start-up included) | {med(status['noop_100'])} | {spread(status['noop_100'])} | < 0.2 s at 1,000 robots |",
         ]
+        if "idle_cpu" in status:
+            lines.append(
+                f"| CPU of the router and {status['agents']} agents holding {status['robots']} robots, idle | {100 * status['idle_cpu']:.1f}% of one core | | |"
+            )
         if status["idle"]:
             lines += ["", "Each robot's one node in the status rows is `sleep` (a shell exec: no ROS, no output)."]
     lines += ["", f"Runs per measurement: {runs} (status query alone: {runs * 4}).", ""]
