@@ -230,6 +230,8 @@ class _Composer:
         except yaml.MarkedYAMLError as error:
             mark = error.problem_mark or error.context_mark
             problem = error.problem or error.context or "invalid YAML"
+            if "nesting depth" in problem:  # libyaml's own limit (0.2.6+), met while reading ahead
+                raise _too_deep(self._location(mark)) from None
             raise YamlSyntaxError(problem, self._location(mark)) from None
         except yaml.reader.ReaderError as error:
             line = self.text.count("\n", 0, error.position) + 1
@@ -275,10 +277,7 @@ class _Composer:
                 if event.tag is not None and event.tag not in (_MAP if is_map else _SEQ, "!"):
                     raise self._tag_error(event)
                 if len(stack) >= MAX_DEPTH:
-                    raise YamlError(
-                        f"more than {MAX_DEPTH} nested lists and mappings: too deep for a fleet input",
-                        self._location(event.start_mark),
-                    )
+                    raise _too_deep(self._location(event.start_mark))
                 if stack and stack[-1].key is _NO_KEY and isinstance(stack[-1].container, dict):
                     raise YamlError("mapping keys must be plain scalars", self._location(event.start_mark))
                 self.values += 1
@@ -484,3 +483,7 @@ class _Composer:
         if mark is None:
             return Location(self.source.file)
         return Location(self.source.file, mark.line + 1, mark.column + 1)
+
+
+def _too_deep(location: Location) -> YamlError:
+    return YamlError(f"more than {MAX_DEPTH} nested lists and mappings: too deep for a fleet input", location)
