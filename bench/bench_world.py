@@ -92,35 +92,35 @@ def world_yaml(model: str, count: int) -> dict:
 
 def run_one(model: str, count: int, sim_duration: float) -> dict:
     """Child process body: build the world, drive every robot, time app.run()."""
-    import resource
+    import numpy as np
 
     from fleet.world.app import WorldApp
-    from fleet.world.ros_bridge import Command, RosBridge
+    from fleet.world.ros_process import RosProcess
 
     published = {"odom": 0, "scan": 0}
-    odom, scan = RosBridge.publish_odom, RosBridge.publish_scans
+    odom, scan = RosProcess.publish_odom, RosProcess.publish_scans
 
-    def count_odom(self, names, *a):
-        published["odom"] += len(names)
-        odom(self, names, *a)
+    def count_odom(self, rows, *a):
+        published["odom"] += len(rows)
+        odom(self, rows, *a)
 
-    def count_scan(self, names, *a):
-        published["scan"] += len(names)
-        scan(self, names, *a)
+    def count_scan(self, rows, *a):
+        published["scan"] += len(rows)
+        scan(self, rows, *a)
 
-    # Count the real publishes by wrapping the class's methods (this child process only).
-    RosBridge.publish_odom, RosBridge.publish_scans = count_odom, count_scan  # type: ignore[method-assign]
+    # Count what the world hands its ROS process by wrapping the class's methods (this child only).
+    RosProcess.publish_odom, RosProcess.publish_scans = count_odom, count_scan  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "world.yaml"
         config.write_text(yaml.safe_dump(world_yaml(model, count)))
         t0 = time.perf_counter()
-        bridge = RosBridge([])
+        bridge = RosProcess([])
         app = WorldApp(config, Path(tmp) / "status.json", as_fast_as_possible=True, bridge=bridge)
+        app.step()  # gives the ROS process the robots
         setup = time.perf_counter() - t0
         spawned = len(app.robots)
-        for i, robot in enumerate(app.robots.values()):
-            # a command that never times out: drive circles, half of them the other way
-            robot.channel.command = Command(0.5, 0.3 if i % 2 else -0.3, math.inf, math.inf)
+        # commands that never time out: drive circles, half of them the other way
+        bridge.hold(np.array([(0.5, 0.3 if i % 2 else -0.3) for i in range(spawned)]).reshape(-1, 2))
         app.run(sim_duration=0.5)  # warm-up
         published.update(odom=0, scan=0)
         contacts0 = app.contacts_count
@@ -130,8 +130,8 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
         wall = time.perf_counter() - t0
         cpu = _cpu_seconds() - cpu0
         contacts = app.contacts_count - contacts0
+        rss = _rss_mib()
         app.close()
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
         "model": model,
         "robots": spawned,
@@ -148,8 +148,19 @@ def run_one(model: str, count: int, sim_duration: float) -> dict:
     }
 
 
+def _rss_mib() -> float:
+    """Resident memory of this process and of its children (ROS process, status writer), MiB."""
+    import psutil
+
+    total = 0
+    for process in [psutil.Process(), *psutil.Process().children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):
+            total += process.memory_info().rss
+    return total / 2**20
+
+
 def _cpu_seconds() -> float:
-    """User + system seconds of this process and of its children (the status writer)."""
+    """User + system seconds of this process and of its children (ROS process, status writer)."""
     import psutil
 
     total = 0.0
@@ -251,11 +262,12 @@ def main() -> None:
         f"({info['cpu']}), {info['ram']} RAM, Python {info['python']}, kernel {info['kernel']}; "
         f"load average at the end {info['load']} (the machine is shared with other work, so numbers "
         "vary by some percent between runs).\n\n"
-        "Setup: one world process, robots on a grid in a walled arena with pillars, every robot driving a "
-        "circle; physics 240 Hz (10 solver iterations); per robot odometry 50 Hz and a 360-beam lidar at 10 Hz "
-        "(numpy ray casting) published through rclpy (FastDDS, no subscribers), /clock 100 Hz, status file "
-        f"4 Hz; as fast as possible for {light_sim:.0f} s (light) / {husky_sim:.0f} s (husky) of sim time after "
-        "0.5 s of warm-up. RTF = sim time / wall time. CPU = process CPU time / wall time (1.0 = one core).\n\n"
+        "Setup: one world (its physics process and its ROS process), robots on a grid in a walled arena with "
+        "pillars, every robot driving a circle; physics 240 Hz (10 solver iterations); per robot odometry 50 Hz "
+        "and a 360-beam lidar at 10 Hz (numpy ray casting) published through rclpy (FastDDS, no subscribers), "
+        f"/clock 100 Hz, status file 4 Hz; as fast as possible for {light_sim:.0f} s (light) / {husky_sim:.0f} s "
+        "(husky) of sim time after 0.5 s of warm-up. RTF = sim time / wall time. CPU = CPU time of the world's "
+        "processes (physics, ROS, status writer) / wall time (1.0 = one core); RSS: theirs together.\n\n"
         + text
         + "\n\nTargets: RTF >= 1.0 with 500 light robots, >= 1.0 with 60 husky.\n\n"
         "Notes: the world's cost per published message (conversion, serialization, FastDDS write) is "

@@ -17,6 +17,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # after choosing the file backend
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -74,6 +75,10 @@ def figure(path: Path, title: str, caption: str, panels: list[tuple[str, dict, s
         ax.set_xscale("log")
         if yscale:
             ax.set_yscale(yscale)
+        for axis in (ax.xaxis, ax.yaxis) if yscale == "log" else (ax.xaxis,):
+            # plain numbers (30, 60, 100) instead of 3x10^1, and no labels on minor ticks, which collide
+            axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+            axis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("robots")
         ax.set_ylabel(ylabel)
         ax.grid(True, which="both", alpha=0.3)
@@ -97,7 +102,7 @@ def world() -> None:
         f"{source.name}: {conditions(source)}",
         [
             ("real-time factor (sim s / wall s)", series(rows, "model", "robots", "RTF"), "log", 1.0),
-            ("world process RSS (MiB)", series(rows, "model", "robots", "RSS MiB"), None, None),
+            ("RSS of the world's processes (MiB)", series(rows, "model", "robots", "RSS MiB"), None, None),
         ],
     )
     compare = RESULTS / "world_compare.md"

@@ -1,6 +1,7 @@
 """The world process: main loop (physics, sensors, pacing), live reload of world.yaml, status.
 
-Everything runs in the main thread except the rclpy executor (see ros_bridge).  Per physics tick
+Everything runs in the main thread; ROS runs in a second process (ros_process), told the robots'
+layout by physics row.  Per physics tick
 the loop only applies commands and steps; sensors, contacts and bookkeeping run on their own
 (sim-time) schedules, wall-clock chores (status file, reload check) on wall-clock schedules.
 """
@@ -22,6 +23,7 @@ import numpy as np
 from fleet.world import lidar
 from fleet.world.description import ObstacleSpec, Pose2D, RobotSpec, WorldError, WorldSpec, load_world
 from fleet.world.geometry import obstacle_shape, robot_shape
+from fleet.world.inputs import RobotInputs
 from fleet.world.physics import PhysicsWorld, SpawnError
 from fleet.world.status import (
     CONTACTS_KEPT,
@@ -49,7 +51,6 @@ MAX_LAG = 0.5  # s: in real-time mode, a world further behind than this stops tr
 @dataclass
 class _Robot:
     spec: RobotSpec
-    channel: Any  # ros_bridge.RobotChannel, or None without ROS
     angles: np.ndarray
     next_odom: float
     next_scan: float
@@ -80,6 +81,7 @@ class WorldApp:
         as_fast_as_possible: bool = False,
         bridge: Any = None,
     ) -> None:
+        """bridge: a ros_process.RosProcess (None: no ROS)."""
         self.config = Path(config)
         self.status_file = Path(status_file) if status_file else None
         self.as_fast_as_possible = as_fast_as_possible
@@ -98,7 +100,9 @@ class WorldApp:
         self._next_clock = 0.0
         self._next_odom = 0.0  # sim time: the earliest next_odom of all robots
         self._next_trail = 0.0  # sim time: the earliest next trail sample of all robots
-        self._channels: tuple | None = None  # physics.row it was made for, channels by row
+        self._layout: tuple | None = None  # (physics.row the bridge was last given, cmd_timeouts by row)
+        self._generation = 0  # of the layout
+        self._inputs = RobotInputs.empty(0, 0)  # the robots' latest commands, batteries, subscribers
         self._footprints: tuple | None = None  # physics.row it was made for, round rows, radii, other robots
         self._obstacle_scene: lidar.Scene | None = None  # what lidars see of the obstacles
         self._writer: StatusWriter | None = None  # started by the first run(), kept until close()
@@ -121,11 +125,13 @@ class WorldApp:
 
     def _add_obstacle(self, spec: ObstacleSpec) -> None:
         self.physics.add_obstacle(spec)
+        self._layout = None  # the bridge draws obstacles
         self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
         self._obstacle_scene = None
 
     def _remove_obstacle(self, name: str) -> None:
         self.physics.remove_obstacle(name)
+        self._layout = None
         self._obstacle_shapes = [obstacle_shape(s) for _, s in self.physics.obstacles.values()]
         self._obstacle_scene = None
 
@@ -146,7 +152,6 @@ class WorldApp:
             self._error(f"robot:{spec.name}", f"robot '{spec.name}' not spawned: {error}")
             return False
         self.errors.pop(f"robot:{spec.name}", None)
-        channel = self.bridge.add_robot(spec) if self.bridge is not None else None
         now = self.physics.sim_time
         lidar_spec = spec.lidar
         period = 1.0 / lidar_spec.rate
@@ -154,7 +159,6 @@ class WorldApp:
         phase = (len(self.robots) * 0.137 % 1.0) * period
         self.robots[spec.name] = _Robot(
             spec=spec,
-            channel=channel,
             angles=lidar.beam_angles(lidar_spec.angle_min, lidar_spec.increment, lidar_spec.beams),
             next_odom=now,
             next_scan=now + phase,
@@ -171,8 +175,6 @@ class WorldApp:
         self.robots.pop(name, None)
         if name in self.physics.robots:
             self.physics.remove_robot(name)
-        if self.bridge is not None:
-            self.bridge.remove_robot(name)
         log.info("robot '%s' removed", name)
 
     # -- reload ------------------------------------------------------------------------------------
@@ -240,12 +242,12 @@ class WorldApp:
         physics = self.physics
         now = physics.sim_time
         bridge = self.bridge
-        if bridge is not None:
-            bridge.sim_time = now
-            if self._tick % self._slot_every == 0:
-                # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds at
-                # most one slot of latency and saves work per robot per tick.
-                physics.command_all(bridge.current_commands(self._channels_by_row(), now))
+        if bridge is not None and self._tick % self._slot_every == 0:
+            # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds at
+            # most one slot of latency and saves work per robot per tick.
+            timeouts = self._sync_layout()
+            self._inputs = bridge.inputs()
+            physics.command_all(self._inputs.live_commands(timeouts, now))
         physics.step()
         self._tick += 1
         now = physics.sim_time
@@ -256,13 +258,22 @@ class WorldApp:
         if bridge is not None and now >= self._next_clock:
             self._next_clock = max(self._next_clock + 1.0 / self.spec.clock_rate, now)
             bridge.publish_clock(now)
+        if bridge is not None:
+            bridge.flush()
 
-    def _channels_by_row(self) -> list:
-        """Each robot's ROS channel, in the order of physics rows."""
-        row = self.physics.row
-        if self._channels is None or self._channels[0] is not row:
-            self._channels = (row, [self.robots[name].channel for name in row])
-        return self._channels[1]
+    def _sync_layout(self) -> np.ndarray:
+        """Give the bridge the robots by physics row and the obstacles when they changed;
+        the robots' cmd_timeouts by row."""
+        row, obstacles = self.physics.row, self.physics.obstacles
+        if self._layout is None or self._layout[0] is not row:
+            specs = [self.robots[name].spec for name in row]
+            timeouts = np.array([spec.cmd_timeout for spec in specs], dtype=float)
+            self._layout = (row, timeouts)
+            if self.bridge is not None:
+                self._generation += 1
+                self.bridge.set_robots(self._generation, specs, [spec for _, spec in obstacles.values()])
+                self._inputs = self.bridge.inputs()
+        return self._layout[1]
 
     def _odometry(self, now: float) -> None:
         """Odometry of the robots due now, read and published as one batch."""
@@ -278,7 +289,8 @@ class WorldApp:
         for robot, (linear, _, angular) in zip(due, velocities.tolist(), strict=True):
             robot.velocity = (linear, angular)
         if self.bridge is not None:
-            self.bridge.publish_odom([robot.spec.name for robot in due], now, poses, velocities)
+            self._sync_layout()
+            self.bridge.publish_odom(rows, now, poses, velocities)
 
     def _slot(self, now: float) -> None:
         """Lidars due now (one scene for all of them), contacts, trails."""
@@ -303,7 +315,8 @@ class WorldApp:
                     robot.next_scan = max(robot.next_scan + 1.0 / robot.spec.lidar.rate, now)
                     robot.hits = (*pose, lid.angle_min, lid.increment, ranges)  # points only for the status
                 if self.bridge is not None:
-                    self.bridge.publish_scans([r.spec.name for r in group], now, all_ranges)
+                    self._sync_layout()
+                    self.bridge.publish_scans(rows, now, all_ranges)
         for event in self.physics.poll_contacts():
             self.contacts_count += 1
             self.contacts_last.append(event.as_dict())
@@ -315,7 +328,8 @@ class WorldApp:
             self._next_trail = min((robot.trail.next_time for robot in self.robots.values()), default=math.inf)
         if self.bridge is not None and time.monotonic() >= self._next_markers:
             self._next_markers = time.monotonic() + MARKER_PERIOD
-            self._publish_markers(now, {name: tuple(poses[i].tolist()) for name, i in row.items()})
+            self._sync_layout()
+            self.bridge.publish_markers(now, poses, self._touching(now))
 
     def _scene(self, poses: np.ndarray) -> lidar.Scene:
         """What the lidars see: obstacles and robots at `poses`; a robot's shapes are owned by its
@@ -338,31 +352,32 @@ class WorldApp:
             scene = scene.joined(lidar.Scene.build(shapes, [i for _, i in others]))
         return scene
 
-    def _publish_markers(self, now: float, poses: dict[str, tuple[float, float, float]]) -> None:
-        touching = {
+    def _touching(self, now: float) -> set[str]:
+        """Robots and obstacles in a contact within the last CONTACT_SHOWN seconds (drawn red)."""
+        return {
             name
             for event in self.contacts_last
             if now - event["sim_time"] <= CONTACT_SHOWN
             for name in (event["a"], event["b"])
         }
-        obstacles = [spec for _, spec in self.physics.obstacles.values()]
-        robots = [(name, self.robots[name].spec.model, pose, name in touching) for name, pose in poses.items()]
-        self.bridge.publish_markers(now, obstacles, robots)
 
     def status_parts(self) -> dict[str, Any]:
         """The status document with each robot's trail and latest scan still raw
         (fleet.world.status.finish_status makes the document of them)."""
         robots = {}
-        poses, row = self.physics.poses().tolist(), self.physics.row
+        self._sync_layout()
+        poses, row, inputs = self.physics.poses().tolist(), self.physics.row, self._inputs
+        ros = self.bridge is not None
         for name, robot in self.robots.items():
-            x, y, yaw = poses[row[name]]
+            i = row[name]
+            x, y, yaw = poses[i]
             robots[name] = {
                 "pose": {"x": round(x, 4), "y": round(y, 4), "yaw": round(yaw, 4)},
                 "velocity": {"linear": round(robot.velocity[0], 4), "angular": round(robot.velocity[1], 4)},
-                "battery": robot.channel.battery if robot.channel is not None else None,
+                "battery": inputs.battery_of(i) if ros else None,
                 "model": robot.model,
                 "namespace": robot.spec.namespace,
-                **(robot.channel.link() if robot.channel is not None else {}),
+                **(inputs.link(i) if ros else {}),
                 "trail": list(robot.trail.points),
                 "hits": robot.hits,
             }
@@ -420,7 +435,7 @@ class WorldApp:
         while not self.stopping:
             if sim_duration is not None and self.physics.sim_time - start_sim >= sim_duration - dt / 2:
                 break
-            if self.bridge is not None and not self.bridge.context.ok():
+            if self.bridge is not None and not self.bridge.ok():
                 break
             self.step()
             wall = time.monotonic()
@@ -463,9 +478,9 @@ def run_world(
     and exits 2)."""
     if not logging.getLogger().handlers:
         logging.basicConfig(level=logging.INFO, format="[world] %(levelname)s: %(message)s")
-    from fleet.world.ros_bridge import RosBridge
+    from fleet.world.ros_process import RosProcess
 
-    bridge = RosBridge(ros_args)
+    bridge = RosProcess(ros_args)
     app = None
     try:
         app = WorldApp(config, status_file, as_fast_as_possible=as_fast_as_possible, bridge=bridge)
@@ -483,6 +498,8 @@ def run_world(
             "as fast as possible" if as_fast_as_possible or not app.spec.real_time else "real time",
         )
         app.run(sim_duration)
+        if not bridge.ok():
+            raise bridge.gone()
     finally:
         if app is not None:
             app.close()

@@ -1,10 +1,14 @@
 """ROS side of the world: one rclpy node, per-robot publishers and subscriptions, /clock.
 
-Threading (stepSimulation holds the GIL, so the physics thread must stay busy with physics):
-the executor spins in a background thread and its callbacks only store the latest command or
-battery reading; the physics thread reads those and publishes odom/scan/clock itself.  Odometry,
-ground truth and scans of all robots are kept serialized (fleet.world.frames): a batch of them is
-written with numpy and published as bytes, so a message costs ~3 us instead of ~20.
+The world runs this in a process of its own (fleet.world.ros_process), beside the physics
+process.  Robots are known by their physics rows: `set_robots` gives the layout, publications
+name rows, `inputs` returns the latest command, battery and odom subscribers of every row as one
+snapshot.
+
+Threading: the executor spins in a background thread and its callbacks only store the latest
+command or battery reading.  Odometry, ground truth and scans of all robots are kept serialized
+(fleet.world.frames): a batch of them is written with numpy and published as bytes, so a message
+costs ~3 us instead of ~20.
 """
 
 from __future__ import annotations
@@ -29,8 +33,9 @@ from sensor_msgs.msg import BatteryState, LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from fleet.world import markers
-from fleet.world.description import ModelSpec, ObstacleSpec, RobotSpec
+from fleet.world.description import ObstacleSpec, RobotSpec
 from fleet.world.frames import Field, SerializedFrames
+from fleet.world.inputs import NEVER, RobotInputs
 
 # Best-effort subscriptions match both reliable and best-effort publishers; reliable publishers
 # match both kinds of subscribers (RViz, Nav2's sensor-data QoS, ros2 topic echo).
@@ -46,8 +51,8 @@ def stamp(sim_time: float) -> Time:
 class Command(NamedTuple):  # a tuple: the commands of all robots make one numpy array cheaply
     linear: float = 0.0
     angular: float = 0.0
-    wall: float = -math.inf  # time.monotonic() when received
-    sim: float = -math.inf  # sim time when received
+    wall: float = NEVER  # time.monotonic() when received
+    sim: float = NEVER  # sim time when received
 
 
 class RobotChannel:
@@ -58,7 +63,7 @@ class RobotChannel:
         self.node = node
         ns = spec.namespace.rstrip("/")
         self.command = Command()
-        self.battery: float | None = None
+        self.battery = math.nan
         self._sim_now = clock_source
         self.odom_pub = node.create_publisher(Odometry, f"{ns}/odom", _PUB_QOS)
         self.scan_pub = node.create_publisher(LaserScan, f"{ns}/scan", _PUB_QOS)
@@ -74,22 +79,7 @@ class RobotChannel:
         self.command = Command(msg.linear.x, msg.angular.z, time.monotonic(), self._sim_now())
 
     def _on_battery(self, msg: BatteryState) -> None:
-        self.battery = None if math.isnan(msg.percentage) else float(msg.percentage)
-
-    def current_command(self, sim_time: float) -> tuple[float, float]:
-        """This robot's share of RosBridge.current_commands."""
-        linear, angular = RosBridge.current_commands([self], sim_time)[0].tolist()
-        return linear, angular
-
-    def link(self) -> dict[str, float | int | None]:
-        """What says this robot's data flows: the age of its last command (wall seconds, None:
-        never received) and the subscriptions matched to its odom (its nodes, once discovered)."""
-        wall = self.command.wall
-        return {
-            # max(): a command stamped in the future (a benchmark's "never expires") is fresh
-            "cmd_age": None if wall == -math.inf else round(max(0.0, time.monotonic() - wall), 2),
-            "odom_subscribers": self.odom_pub.get_subscription_count(),
-        }
+        self.battery = float(msg.percentage)
 
     def destroy(self) -> None:
         for entity in (self.odom_pub, self.scan_pub, self.truth_pub, self.markers_pub):
@@ -147,10 +137,9 @@ def _write_stamp(frames: SerializedFrames, slots: np.ndarray, sim_time: float) -
 
 class Outbox:
     """The serialized odometry, ground truth and scans of a set of robots (fleet.world.frames),
-    built once for the robots present and published in batches by robot name."""
+    built once for the robots present (one slot per row) and published in batches by row."""
 
     def __init__(self, channels: list[RobotChannel]) -> None:
-        self.slot = {channel.spec.name: i for i, channel in enumerate(channels)}
         self.odom_pubs = [channel.odom_pub for channel in channels]
         self.odom = SerializedFrames([odom_template(c.spec) for c in channels], _ODOM_FIELDS)
         # odom's origin is the robot's nominal spawn pose from world.yaml (not where a restarted
@@ -158,7 +147,7 @@ class Outbox:
         self.origin = np.array([(c.spec.pose.x, c.spec.pose.y, c.spec.pose.yaw) for c in channels]).reshape(-1, 3)
         with_truth = [c for c in channels if c.truth_pub is not None]
         self.truth_slot = np.full(len(channels), -1, dtype=np.int64)
-        self.truth_slot[[self.slot[c.spec.name] for c in with_truth]] = np.arange(len(with_truth))
+        self.truth_slot[[i for i, c in enumerate(channels) if c.truth_pub is not None]] = np.arange(len(with_truth))
         self.truth_pubs = [c.truth_pub for c in with_truth]
         self.truth = SerializedFrames([truth_template(c.spec) for c in with_truth], _TRUTH_FIELDS)
         # scans by beam count (the length of the ranges field): (frames, slot -> row, publishers)
@@ -166,17 +155,13 @@ class Outbox:
         for beams in sorted({c.spec.lidar.beams for c in channels}):
             same = [c for c in channels if c.spec.lidar.beams == beams]
             rows = np.full(len(channels), -1, dtype=np.int64)
-            rows[[self.slot[c.spec.name] for c in same]] = np.arange(len(same))
+            rows[[i for i, c in enumerate(channels) if c.spec.lidar.beams == beams]] = np.arange(len(same))
             fields = (*_STAMP, Field("ranges", "f4", beams))
             frames = SerializedFrames([scan_template(c.spec) for c in same], fields)
             self.scans[beams] = (frames, rows, [c.scan_pub for c in same])
 
-    def slots(self, names: list[str]) -> np.ndarray:
-        return np.array([self.slot[name] for name in names], dtype=np.int64)
-
-    def publish_odom(self, names: list[str], sim_time: float, poses: np.ndarray, velocities: np.ndarray) -> None:
+    def publish_odom(self, slots: np.ndarray, sim_time: float, poses: np.ndarray, velocities: np.ndarray) -> None:
         """poses (S, 3) x, y, yaw in the world; velocities (S, 3) linear, lateral, angular in the body frame."""
-        slots = self.slots(names)
         ox, oy, oyaw = self.origin[slots].T
         c, s = np.cos(oyaw), np.sin(oyaw)
         dx, dy = poses[:, 0] - ox, poses[:, 1] - oy
@@ -206,14 +191,17 @@ class Outbox:
             for row, data in zip(rows.tolist(), truth.messages(rows), strict=True):
                 self.truth_pubs[row].publish(data)
 
-    def publish_scans(self, names: list[str], sim_time: float, ranges: np.ndarray) -> None:
-        """ranges (S, beams), one scan per robot named."""
+    def publish_scans(self, slots: np.ndarray, sim_time: float, ranges: np.ndarray) -> None:
+        """ranges (S, beams), one scan per slot."""
         frames, rows_of, pubs = self.scans[ranges.shape[1]]
-        rows = rows_of[self.slots(names)]
+        rows = rows_of[slots]
         _write_stamp(frames, rows, sim_time)
         frames.write("ranges", rows, ranges.astype(np.float32))
         for row, data in zip(rows.tolist(), frames.messages(rows), strict=True):
             pubs[row].publish(data)
+
+
+SUBSCRIBERS_PERIOD = 1.0  # s (wall) between counts of each odom's subscribers: they change rarely
 
 
 class RosBridge:
@@ -226,89 +214,98 @@ class RosBridge:
         self.scene_pub = self.node.create_publisher(MarkerArray, "~/markers", _PUB_QOS)
         self._clock_msg = Clock()
         self.channels: dict[str, RobotChannel] = {}
+        self.rows: list[RobotChannel] = []  # the channels by physics row
+        self.obstacles: list[ObstacleSpec] = []
+        self.generation = 0  # of the layout (rows and obstacles) last set
         self._outbox: Outbox | None = None
-        self.sim_time = 0.0  # written by the physics thread, read by callbacks for stamps
+        self._subscribers = np.zeros(0, dtype=np.int64)
+        self._subscribers_at = -math.inf  # time.monotonic() of the last count
+        self.sim_time = 0.0  # the latest sim time published, read by callbacks for stamps
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="ros-executor", daemon=True)
         self._thread.start()
 
-    @staticmethod
-    def current_commands(channels: list[RobotChannel], sim_time: float) -> np.ndarray:
-        """(n, 2) linear and angular speed: each channel's latest command, or zero once it is older
-        than its cmd_timeout in both sim and wall time (a sim-time-only timeout would stop a
-        wall-clock publisher in a faster-than-real-time world; a wall-only one would let a stalled
-        controller drive on in a slow world)."""
-        commands = np.array([channel.command for channel in channels], dtype=float).reshape(-1, 4)
-        timeouts = np.array([channel.spec.cmd_timeout for channel in channels], dtype=float)
-        wall, sim = commands[:, 2], commands[:, 3]
-        expired = (sim_time - sim > timeouts) & (time.monotonic() - wall > timeouts)
-        return np.where(expired[:, None], 0.0, commands[:, :2])
-
     def _spin(self) -> None:
         with contextlib.suppress(ExternalShutdownException, KeyboardInterrupt):
             self.executor.spin()
 
-    @property
-    def logger(self):
-        return self.node.get_logger()
-
-    def add_robot(self, spec: RobotSpec) -> RobotChannel:
-        channel = RobotChannel(self.node, spec, lambda: self.sim_time)
-        self.channels[spec.name] = channel
+    def set_robots(self, generation: int, robots: list[RobotSpec], obstacles: list[ObstacleSpec]) -> None:
+        """The robots by physics row, and the obstacles: robots that are new or changed get their
+        publishers and subscriptions, robots no longer present lose them."""
+        wanted = {spec.name: spec for spec in robots}
+        for name, channel in list(self.channels.items()):
+            if wanted.get(name) != channel.spec:
+                channel.destroy()
+                del self.channels[name]
+        for spec in robots:
+            if spec.name not in self.channels:
+                self.channels[spec.name] = RobotChannel(self.node, spec, lambda: self.sim_time)
+        self.rows = [self.channels[spec.name] for spec in robots]
+        self.obstacles = list(obstacles)
+        self.generation = generation
         self._outbox = None
-        return channel
+        self._subscribers_at = -math.inf
 
-    def remove_robot(self, name: str) -> None:
-        channel = self.channels.pop(name, None)
-        if channel is not None:
-            channel.destroy()
-            self._outbox = None
+    def inputs(self) -> RobotInputs:
+        """The latest command, battery and odom subscribers of every row."""
+        rows = self.rows
+        now = time.monotonic()
+        if now - self._subscribers_at > SUBSCRIBERS_PERIOD:
+            self._subscribers = np.array([c.odom_pub.get_subscription_count() for c in rows], dtype=np.int64)
+            self._subscribers_at = now
+        commands = np.array([c.command for c in rows], dtype=float).reshape(-1, 4)
+        battery = np.array([c.battery for c in rows], dtype=float)
+        return RobotInputs(self.generation, commands, battery, self._subscribers)
+
+    def hold(self, commands: np.ndarray) -> None:
+        """(n, 2) linear and angular speed by row that never expire: how a benchmark drives."""
+        for channel, (linear, angular) in zip(self.rows, commands.tolist(), strict=True):
+            channel.command = Command(linear, angular, math.inf, math.inf)
 
     @property
     def outbox(self) -> Outbox:
         """The serialized messages of the robots present (rebuilt after robots came or went)."""
         if self._outbox is None:
-            self._outbox = Outbox(list(self.channels.values()))
+            self._outbox = Outbox(self.rows)
         return self._outbox
 
-    def publish_odom(self, names: list[str], sim_time: float, poses: np.ndarray, velocities: np.ndarray) -> None:
-        self.outbox.publish_odom(names, sim_time, poses, velocities)
+    def publish_odom(self, rows: np.ndarray, sim_time: float, poses: np.ndarray, velocities: np.ndarray) -> None:
+        self.sim_time = sim_time
+        self.outbox.publish_odom(rows, sim_time, poses, velocities)
 
-    def publish_scans(self, names: list[str], sim_time: float, ranges: np.ndarray) -> None:
-        self.outbox.publish_scans(names, sim_time, ranges)
+    def publish_scans(self, rows: np.ndarray, sim_time: float, ranges: np.ndarray) -> None:
+        self.sim_time = sim_time
+        self.outbox.publish_scans(rows, sim_time, ranges)
 
     def publish_clock(self, sim_time: float) -> None:
+        self.sim_time = sim_time
         self._clock_msg.clock = stamp(sim_time)
         self.clock_pub.publish(self._clock_msg)
 
-    def publish_markers(
-        self,
-        sim_time: float,
-        obstacles: list[ObstacleSpec],
-        robots: list[tuple[str, ModelSpec, tuple[float, float, float], bool]],
-    ) -> None:
-        """The scene on ~/markers, and each robot's own markers on <ns>/markers; built only for
-        topics someone subscribes to (hundreds of robots' markers are not free)."""
+    def publish_markers(self, sim_time: float, poses: np.ndarray, touching: set[str]) -> None:
+        """The scene on ~/markers, and each robot's own markers on <ns>/markers (poses by row);
+        built only for topics someone subscribes to (hundreds of robots' markers are not free)."""
         t = stamp(sim_time)
         scene_wanted = self.scene_pub.get_subscription_count() > 0
-        scene = MarkerArray(markers=markers.obstacle_markers(obstacles, t) if scene_wanted else [])
-        for name, model, pose, in_contact in robots:
-            channel = self.channels.get(name)
-            own_pub = channel.markers_pub if channel is not None else None
-            own_wanted = own_pub is not None and own_pub.get_subscription_count() > 0
+        scene = MarkerArray(markers=markers.obstacle_markers(self.obstacles, t) if scene_wanted else [])
+        for channel, pose in zip(self.rows, poses.tolist(), strict=True):
+            own_wanted = channel.markers_pub.get_subscription_count() > 0
             if not (scene_wanted or own_wanted):
                 continue
-            own = markers.robot_markers(name, model, pose, in_contact, t)
+            name = channel.spec.name
+            own = markers.robot_markers(name, channel.spec.model, tuple(pose), name in touching, t)
             scene.markers.extend(own)
-            if own_pub is not None and own_wanted:
-                own_pub.publish(MarkerArray(markers=own))
+            if own_wanted:
+                channel.markers_pub.publish(MarkerArray(markers=own))
         if scene_wanted:
             self.scene_pub.publish(scene)
 
     def close(self) -> None:
-        for name in list(self.channels):
-            self.remove_robot(name)
+        for channel in self.channels.values():
+            channel.destroy()
+        self.channels.clear()
+        self.rows = []
         self.executor.shutdown(timeout_sec=1.0)
         self._thread.join(timeout=2.0)
         self.node.destroy_node()

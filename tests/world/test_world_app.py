@@ -4,7 +4,6 @@ file, and a snapshot drawn from status data."""
 import json
 import os
 import time
-from typing import Any
 
 import pytest
 
@@ -142,19 +141,22 @@ def test_snapshot_draws_status_data(files, tmp_path):
 
 def test_command_times_out_in_both_sim_and_wall_time(monkeypatch):
     """A command is dropped only when it is older than cmd_timeout in sim time AND in wall time."""
-    import types
+    import numpy as np
 
-    from fleet.world import ros_bridge
-    from fleet.world.description import RobotSpec
+    from fleet.world import inputs as robot_inputs
 
     wall = [100.0]
-    monkeypatch.setattr(ros_bridge.time, "monotonic", lambda: wall[0])
-    channel: Any = types.SimpleNamespace(  # a stand-in `self` for the method under test
-        spec=RobotSpec("r", "/r", cmd_timeout=0.5), command=ros_bridge.Command(0.4, 0.1, wall=100.0, sim=10.0)
-    )
-    current = ros_bridge.RobotChannel.current_command
-    assert current(channel, 10.2) == (0.4, 0.1)
-    assert current(channel, 30.0) == (0.4, 0.1)  # far ahead in sim, but only just sent (fast world)
+    monkeypatch.setattr(robot_inputs.time, "monotonic", lambda: wall[0])
+    inputs = robot_inputs.RobotInputs.empty(1, 2)
+    inputs.commands[0] = (0.4, 0.1, 100.0, 10.0)  # robot 0: received at wall 100 s, sim 10 s
+    timeouts = np.array([0.5, 0.5])
+
+    def current(sim_time: float) -> list[float]:
+        return inputs.live_commands(timeouts, sim_time).tolist()[0]
+
+    assert current(10.2) == [0.4, 0.1]
+    assert current(30.0) == [0.4, 0.1]  # far ahead in sim, but only just sent (fast world)
     wall[0] = 100.6
-    assert current(channel, 10.3) == (0.4, 0.1)  # old in wall time, fresh in sim (slow world)
-    assert current(channel, 10.6) == (0.0, 0.0)
+    assert current(10.3) == [0.4, 0.1]  # old in wall time, fresh in sim (slow world)
+    assert current(10.6) == [0.0, 0.0]
+    assert inputs.live_commands(timeouts, 10.0).tolist()[1] == [0.0, 0.0]  # robot 1: never commanded

@@ -181,25 +181,28 @@ def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env):
 
 
 def test_the_world_reports_each_robots_data_flow(ros_env):
-    """What `running` rests on: the age of a robot's last cmd_vel at the world (None before the
-    first, never negative or infinite: the status file must stay JSON) and its odom's subscribers."""
+    """What `running` rests on, as the world's ROS process reports it: the age of a robot's last
+    cmd_vel (None before the first, never negative or infinite: the status file must stay JSON)
+    and its odom's subscribers; a robot keeps them when another joins ahead of it."""
+    import numpy as np
     from geometry_msgs.msg import Twist
     from nav_msgs.msg import Odometry
 
     from fleet.testing.ros import RosProbe
     from fleet.world.description import RobotSpec
-    from fleet.world.ros_bridge import Command, RosBridge
+    from fleet.world.ros_process import RosProcess
 
-    bridge = RosBridge([])
+    r1, r0 = RobotSpec(name="r1", namespace="/r1"), RobotSpec(name="r0", namespace="/r0")
+    bridge = RosProcess([])
     try:
-        channel = bridge.add_robot(RobotSpec(name="r1", namespace="/r1"))
-        assert channel.link() == {"cmd_age": None, "odom_subscribers": 0}
+        bridge.set_robots(1, [r1], [])
+        assert bridge.inputs().link(0) == {"cmd_age": None, "odom_subscribers": 0}
         with RosProbe() as probe:
             probe.subscribe("/r1/odom", Odometry)
 
             def link_seen():
                 probe.publish("/r1/cmd_vel", Twist())
-                return channel.link()
+                return bridge.inputs().link(0)
 
             poll(
                 link_seen,
@@ -207,12 +210,40 @@ def test_the_world_reports_each_robots_data_flow(ros_env):
                 timeout=20,
                 interval=0.1,
                 pause=probe.spin,
-                what="a command and an odom subscriber seen by the bridge",
+                what="a command and an odom subscriber seen by the world's ROS process",
             )
-            cmd_age = channel.link()["cmd_age"]
+            cmd_age = bridge.inputs().link(0)["cmd_age"]
             assert cmd_age is not None and 0.0 <= cmd_age < 5.0
-        channel.command = Command(0.5, 0.0, math.inf, math.inf)  # a benchmark's never-expiring command
-        json.dumps(channel.link(), allow_nan=False)
-        assert channel.link()["cmd_age"] == 0.0
+        bridge.set_robots(2, [r0, r1], [])  # r1 moves to row 1 and keeps what it had
+        inputs = bridge.inputs()
+        assert inputs.generation == 2 and inputs.link(0)["cmd_age"] is None
+        assert inputs.link(1)["cmd_age"] is not None and inputs.link(1)["odom_subscribers"]
+        bridge.hold(np.array([[0.0, 0.0], [0.5, 0.0]]))  # a benchmark's never-expiring command
+        inputs = poll(
+            bridge.inputs,
+            until=lambda inputs: inputs.commands[1, 0] == 0.5,
+            timeout=10,
+            interval=0.05,
+            what="the held command",
+        )
+        json.dumps(inputs.link(1), allow_nan=False)
+        assert inputs.link(1)["cmd_age"] == 0.0
+        assert inputs.live_commands(np.array([0.5, 0.5]), sim_time=1e9).tolist() == [[0.0, 0.0], [0.5, 0.0]]
     finally:
         bridge.close()
+    assert not bridge.ok()
+
+
+def test_the_world_exits_1_when_its_ros_process_dies(start_world):
+    """Without its ROS process the world cannot publish: it exits 1 with one line, so that its
+    supervisor restarts both, instead of stepping on with no one hearing it."""
+    import psutil
+
+    config, status, proc = start_world(WORLD.format(extra=""), "--as-fast-as-possible")
+    poll(lambda: read_status(status), timeout=30, interval=0.1, what="the world's status file")
+    children = psutil.Process(proc.pid).children()
+    (ros_side,) = [child for child in children if "fleet.world.ros_process" in child.cmdline()]
+    ros_side.kill()
+    assert proc.wait(timeout=20) == 1
+    log = (config.parent / "world.log").read_text()
+    assert "fleet: error: the world's ROS process exited" in log and "Traceback" not in log, log

@@ -1,0 +1,30 @@
+"""The robots' inputs as the physics side keeps them across a change of layout (pure)."""
+
+import math
+
+import numpy as np
+
+from fleet.world.inputs import RobotInputs
+from fleet.world.ros_process import _remapped
+
+
+def test_a_new_layout_keeps_each_robots_inputs_by_name():
+    old = RobotInputs.empty(1, 3)
+    old.commands[:] = [(0.1, 0.0, 5.0, 1.0), (0.2, 0.0, 6.0, 2.0), (0.3, 0.0, 7.0, 3.0)]
+    old.battery[:] = [10.0, 20.0, 30.0]
+    old.odom_subscribers[:] = [1, 2, 3]
+    new = _remapped(old, ["a", "b", "c"], ["c", "new", "a"], generation=2)
+    assert new.generation == 2
+    assert new.commands[:, 0].tolist() == [0.3, 0.0, 0.1]
+    assert new.battery_of(0) == 30.0 and new.battery_of(1) is None and new.battery_of(2) == 10.0
+    assert new.link(1) == {"cmd_age": None, "odom_subscribers": 0}  # "new" has had nothing yet
+    assert new.odom_subscribers.tolist() == [3, 0, 1]
+    assert math.isinf(new.commands[1, 2])
+
+
+def test_inputs_of_another_layout_are_not_mixed_in():
+    """A snapshot whose rows do not match the names it is said to be of gives nothing."""
+    stale = RobotInputs.empty(1, 2)
+    stale.battery[:] = [50.0, 60.0]
+    fresh = _remapped(stale, ["a", "b", "c"], ["a"], generation=3)
+    assert len(fresh) == 1 and np.isnan(fresh.battery[0])
