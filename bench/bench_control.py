@@ -57,7 +57,7 @@ BENCH_MARKER = "FLEET_BENCH_RUN"
 
 class ReadyWatcher:
     """Which nodes are up: a node process counts once rclpy has created its DDS participant,
-    seen as UDP sockets the process holds.  This needs no discovery (whose timing on a loaded
+    seen as UDP sockets the process (or its child, for the world) holds.  This needs no discovery (whose timing on a loaded
     2-core machine varies by seconds), and is the same test for the floor and for fleet deploy."""
 
     def __init__(self, marker: str):
@@ -72,7 +72,8 @@ class ReadyWatcher:
                 tokens = process.cmdline()
                 node = next((t.split(":=", 1)[1] for t in tokens if t.startswith("__node:=")), None)
                 namespace = next((t.split(":=", 1)[1] for t in tokens if t.startswith("__ns:=")), "")
-                if node and process.net_connections(kind="udp"):
+                # The world's participant is in its ROS process, a child of the one named.
+                if node and any(p.net_connections(kind="udp") for p in [process, *process.children()]):
                     found.add(f"{namespace.rstrip('/')}/{node}")
             except Exception:  # gone meanwhile
                 continue
@@ -121,15 +122,16 @@ def fleet_spec(cluster: Cluster, domain_id: int) -> Path:
     return path
 
 
-def direct_commands(spec: Path, root: Path, domain_id: int):
-    """The node processes of every bundle, as the runner would start them."""
+def direct_commands(spec: Path, root: Path, domain_id: int, discovery_server: str):
+    """The node processes of every bundle, as the runner would start them (clients of the
+    fleet's discovery server, as an agent's are)."""
     from fleet.expand import expand_fleet
     from fleet.runtime.ament import ament_prefix_path
     from fleet.runtime.launch_file import load_launch_file
     from fleet.spec import load_spec
 
     expansion = expand_fleet(load_spec(spec))
-    base = ros_environment(domain_id)
+    base = ros_environment(domain_id, discovery_server=discovery_server)
     base["AMENT_PREFIX_PATH"] = ament_prefix_path(base)
     commands, fqns = [], set()
     for bundle in expansion.bundles:
@@ -157,66 +159,77 @@ def fallback_spec(cluster: Cluster, domain_id: int) -> Path:
     )
 
 
+def floor_and_deploy(cluster: Cluster, observer: ReadyWatcher, spec: Path, runs: int, timeout: float) -> dict:
+    """`runs` pairs of: the spec's node processes started directly and in parallel (the floor),
+    then `fleet deploy` of the spec, each until every node is up, then `fleet down`.  Returns the
+    times, or {"error": the deploy's output} when a deploy failed."""
+    from fleet.dataplane.discovery import discovery_server
+    from fleet.runtime.environment import discovery_server_port
+
+    fleet_name = yaml.safe_load(spec.read_text())["fleet"]
+    server = f"127.0.0.1:{discovery_server_port(cluster.domain_id)}"
+    commands, fqns = direct_commands(spec, cluster.root, cluster.domain_id, server)
+    commands = [(cmd, {**env, BENCH_MARKER: observer.marker}) for cmd, env in commands]
+    deploys, floors, cli_exits = [], [], []
+    for _ in range(runs):
+        # The floor: the same processes, started directly and in parallel, with a discovery
+        # server of their own (the deploy's agent runs the fleet's; both use the same port).
+        floor_server = discovery_server(server, ros_environment(cluster.domain_id), cluster.root / "floor-server.log")
+        floor_server.keep_running()
+        start = time.perf_counter()
+        processes = [
+            subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for cmd, env in commands
+        ]
+        seen = observer.wait_for(fqns, timeout)
+        floors.append(seen - start if seen else float("nan"))
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.wait()
+        floor_server.stop()
+        observer.wait_gone(timeout)
+        # fleet deploy, from the command's start.
+        start = time.perf_counter()
+        cli = subprocess.Popen(
+            fleet(cluster, "deploy", str(spec), "--timeout", str(int(timeout))),
+            env=user_env(cluster.env),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        exited: list[tuple[str, float]] = []
+        reader = threading.Thread(
+            target=lambda cli=cli, exited=exited: exited.append((cli.communicate()[0], time.perf_counter()))
+        )
+        reader.start()
+        seen = observer.wait_for(fqns, timeout)
+        reader.join()
+        output, exit_time = exited[0]
+        cli_exits.append(exit_time - start)
+        if cli.returncode != 0 or seen is None:
+            return {"error": output[-2000:]}
+        deploys.append(seen - start)
+        subprocess.run(fleet(cluster, "down", "--fleet", fleet_name), env=cluster.env, capture_output=True)
+        observer.wait_gone(timeout)
+    return {"nodes": len(fqns), "floor": floors, "deploy": deploys, "cli_exit": cli_exits, "spec": spec.name}
+
+
 def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
     with reserve_domain_id() as reservation, tempfile.TemporaryDirectory() as tmp:
         domain_id = reservation.domain_id
         marker = f"bench-{os.getpid()}-{time.monotonic_ns()}"
         cluster = Cluster(Path(tmp), domain_id, {BENCH_MARKER: marker})
-        observer = ReadyWatcher(marker)
         try:
             cluster.start_router()
             cluster.start_agent("local")
             cluster.wait_agents_online("local")
             spec = make_spec(cluster, domain_id)
-            fleet_name = yaml.safe_load(spec.read_text())["fleet"]
-            commands, fqns = direct_commands(spec, cluster.root, domain_id)
-            commands = [(cmd, {**env, BENCH_MARKER: marker}) for cmd, env in commands]
-            deploys, floors, cli_exits = [], [], []
-            for _ in range(runs):
-                # The floor: the same processes, started directly and in parallel.
-                start = time.perf_counter()
-                processes = [
-                    subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                    for cmd, env in commands
-                ]
-                seen = observer.wait_for(fqns, 60)
-                floors.append(seen - start if seen else float("nan"))
-                for process in processes:
-                    process.terminate()
-                for process in processes:
-                    process.wait()
-                observer.wait_gone()
-                # fleet deploy, from the command's start.
-                start = time.perf_counter()
-                cli = subprocess.Popen(
-                    fleet(cluster, "deploy", str(spec), "--timeout", "60"),
-                    env=user_env(cluster.env),
-                    stdout=subprocess.PIPE,
-                    stderr=subprocess.STDOUT,
-                    text=True,
-                )
-                exited: list[tuple[str, float]] = []
-                reader = threading.Thread(
-                    target=lambda cli=cli, exited=exited: exited.append((cli.communicate()[0], time.perf_counter()))
-                )
-                reader.start()
-                seen = observer.wait_for(fqns, 60)
-                reader.join()
-                output, exit_time = exited[0]
-                cli_exits.append(exit_time - start)
-                if cli.returncode != 0 or seen is None:
-                    results["deploy_error"] = output[-2000:]
-                    return
-                deploys.append(seen - start)
-                subprocess.run(fleet(cluster, "down", "--fleet", fleet_name), env=cluster.env, capture_output=True)
-                observer.wait_gone()
-            results["deploy"] = {
-                "nodes": len(fqns),
-                "floor": floors,
-                "deploy": deploys,
-                "cli_exit": cli_exits,
-                "spec": spec.name,
-            }
+            measured = floor_and_deploy(cluster, ReadyWatcher(marker), spec, runs, timeout=60)
+            if "error" in measured:
+                results["deploy_error"] = measured["error"]
+                return
+            results["deploy"] = measured
             # 2. no-op redeploy (fleet up and running).
             subprocess.run(fleet(cluster, "deploy", str(spec)), env=cluster.env, capture_output=True)
             noop = []
@@ -225,6 +238,38 @@ def bench_deploy(runs: int, results: dict, make_spec=fleet_spec) -> None:
                 assert done.returncode == 0 and "nothing changed" in done.stdout, done.stdout
                 noop.append(seconds)
             results["noop"] = noop
+        finally:
+            cluster.stop()
+
+
+def start_agents(cluster: Cluster, n_agents: int) -> list[str]:
+    """The router and n_agents agents (host000, host001, ...), once all are online."""
+    cluster.start_router()
+    agents = [f"host{i:03d}" for i in range(n_agents)]
+    for agent in agents:
+        cluster.start_agent(agent)
+    cluster.wait_agents_online(*agents, timeout=60 + 3 * n_agents)
+    return agents
+
+
+def bench_deploy_many(runs: int, results: dict, n_agents: int, n_robots: int) -> None:
+    """Deploy of n_robots on n_agents (all on this machine) against starting the same node
+    processes directly: one real rclpy node per robot (template one_controller), one process each
+    (`isolation: process`, so that the floor can start exactly the processes the agents start)."""
+    with reserve_domain_id() as reservation, tempfile.TemporaryDirectory() as tmp:
+        marker = f"bench-{os.getpid()}-{time.monotonic_ns()}"
+        cluster = Cluster(Path(tmp), reservation.domain_id, {BENCH_MARKER: marker})
+        try:
+            agents = start_agents(cluster, n_agents)
+            spec = cluster.spec(
+                name="many",
+                agents={agent: {} for agent in agents},
+                defaults={"template": "one_controller", "isolation": "process"},
+                robots=[{"name": f"robot{i:03d}", "agent": agents[i % n_agents]} for i in range(n_robots)],
+            )
+            settle()
+            measured = floor_and_deploy(cluster, ReadyWatcher(marker), spec, runs, timeout=120 + n_robots)
+            results["deploy_many"] = {**measured, "agents": n_agents, "robots": n_robots}
         finally:
             cluster.stop()
 
@@ -242,11 +287,7 @@ def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 1
         if idle:  # the stand-in node (a Python process each) would not fit 1,000 times
             (cluster.prefix / "lib" / "fleet_test" / "sleeper").write_text(IDLE_NODE)
         try:
-            cluster.start_router()
-            agents = [f"host{i:03d}" for i in range(n_agents)]
-            for agent in agents:
-                cluster.start_agent(agent)
-            cluster.wait_agents_online(*agents, timeout=60 + 3 * n_agents)
+            agents = start_agents(cluster, n_agents)
             robots = [{"name": f"robot{i:04d}", "agent": agents[i % n_agents]} for i in range(n_robots)]
             spec = cluster.spec(agents={a: {} for a in agents}, robots=robots)
             outcome = cluster.deploy(spec, timeout=120 + n_robots)
@@ -372,6 +413,16 @@ def report(results: dict, runs: int) -> str:
             f"| `fleet deploy {deploy['spec']}` start until all nodes are up | {med(deploy['deploy'])} | {spread(deploy['deploy'])} | <= 1.3 x floor + 0.3 s = {target:.3f} s |",
             f"| `fleet deploy` start until the command returned (all node processes running) | {med(deploy['cli_exit'])} | {spread(deploy['cli_exit'])} | |",
         ]
+    many = results.get("deploy_many")
+    if many and "error" in many:
+        lines.append(f"| deploy of {many['robots']} robots on {many['agents']} agents | failed | | |")
+    elif many:
+        floor = statistics.median(many["floor"])
+        ratio = statistics.median(many["deploy"]) / floor
+        lines += [
+            f"| floor: the {many['nodes']} node processes of {many['robots']} robots started directly in parallel, until all are up | {med(many['floor'])} | {spread(many['floor'])} | |",
+            f"| `fleet deploy` of those {many['robots']} robots on {many['agents']} agents, until all nodes are up | {med(many['deploy'])} | {spread(many['deploy'])} | within 1.5x the floor: {ratio:.2f}x |",
+        ]
     if results.get("noop"):
         lines.append(
             f"| no-op redeploy of {deploy['spec'] if deploy else 'the fleet'} (`fleet deploy`, CLI start-up included) | {med(results['noop'])} | {spread(results['noop'])} | < 0.3 s |"
@@ -400,6 +451,8 @@ def main() -> int:
     parser.add_argument("--skip-deploy", action="store_true")
     parser.add_argument("--agents", type=int, default=10, help="agents of the status fleet")
     parser.add_argument("--robots", type=int, default=100, help="robots of the status fleet")
+    parser.add_argument("--deploy-agents", type=int, default=10, help="agents of the many-robot deploy")
+    parser.add_argument("--deploy-robots", type=int, default=100, help="robots of the many-robot deploy (0: skip)")
     parser.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "control.md")
     args = parser.parse_args()
     results: dict = {}
@@ -412,6 +465,8 @@ def main() -> int:
         if "deploy" not in results:  # two_robots cannot run yet: measure a stand-in, labelled as such
             results["deploy_fallback"] = True
             bench_deploy(args.runs, results, fallback_spec)
+        if args.deploy_robots:
+            bench_deploy_many(max(1, args.runs // 2), results, args.deploy_agents, args.deploy_robots)
     bench_status(args.runs, results, args.agents, args.robots)
     text = report(results, args.runs)
     args.output.parent.mkdir(parents=True, exist_ok=True)
