@@ -12,7 +12,10 @@ from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
 from fleet.errors import ControlError
-from fleet.plan.desired import (
+from fleet.plan import (
+    FleetView,
+    RobotRow,
+    build_view,
     discovery_for,
     held_generation,
     new_generation,
@@ -20,7 +23,6 @@ from fleet.plan.desired import (
     requests_for,
     with_planned_agents,
 )
-from fleet.plan.view import FleetView, RobotRow, build_view
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
