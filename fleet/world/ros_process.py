@@ -41,7 +41,7 @@ LAYOUT_TIMEOUT = 300.0  # s for it to create the publishers of a new layout (hun
 STOP_TIMEOUT = 5.0  # s for it to exit once asked
 
 # What the physics side may ask of the bridge: RosBridge methods that take plain data
-_PUBLISHING = ("publish_odom", "publish_scans", "publish_clock", "publish_markers", "hold")
+_FORWARDED = ("publish_odom", "publish_scans", "publish_clock", "publish_markers", "hold")
 
 
 class RosSideGone(FleetError):
@@ -209,7 +209,7 @@ def serve(conn: Connection, ros_args: list[str]) -> None:
                 elif kind == "set_robots":
                     bridge.set_robots(*args)
                     replies.put(("set_robots", args[0]))
-                elif kind in _PUBLISHING:
+                elif kind in _FORWARDED:
                     getattr(bridge, kind)(*args)
                 else:
                     raise ValueError(f"unknown request from the physics process: {kind!r}")
