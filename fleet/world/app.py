@@ -1,9 +1,9 @@
 """The world process: main loop (physics, sensors, pacing), live reload of world.yaml, status.
 
 Everything runs in the main thread; ROS runs in a second process (ros_process), told the robots'
-layout by physics row.  Per physics tick
-the loop only applies commands and steps; sensors, contacts and bookkeeping run on their own
-(sim-time) schedules, wall-clock chores (status file, reload check) on wall-clock schedules.
+layout by physics row.  Per physics tick the loop only applies commands and steps; sensors,
+contacts and bookkeeping run on their own (sim-time) schedules, wall-clock chores (status file,
+reload check) on wall-clock schedules.
 """
 
 from __future__ import annotations
@@ -242,12 +242,13 @@ class WorldApp:
         physics = self.physics
         now = physics.sim_time
         bridge = self.bridge
-        if bridge is not None and self._tick % self._slot_every == 0:
-            # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds at
-            # most one slot of latency and saves work per robot per tick.
-            timeouts = self._sync_layout()
-            self._inputs = bridge.inputs()
-            physics.command_all(self._inputs.live_commands(timeouts, now))
+        if bridge is not None:
+            timeouts = self._sync_layout()  # robots come and go between steps (reload)
+            if self._tick % self._slot_every == 0:
+                # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds
+                # at most one slot of latency and saves work per robot per tick.
+                self._inputs = bridge.inputs()
+                physics.command_all(self._inputs.live_commands(timeouts, now))
         physics.step()
         self._tick += 1
         now = physics.sim_time
@@ -289,7 +290,6 @@ class WorldApp:
         for robot, (linear, _, angular) in zip(due, velocities.tolist(), strict=True):
             robot.velocity = (linear, angular)
         if self.bridge is not None:
-            self._sync_layout()
             self.bridge.publish_odom(rows, now, poses, velocities)
 
     def _slot(self, now: float) -> None:
@@ -315,7 +315,6 @@ class WorldApp:
                     robot.next_scan = max(robot.next_scan + 1.0 / robot.spec.lidar.rate, now)
                     robot.hits = (*pose, lid.angle_min, lid.increment, ranges)  # points only for the status
                 if self.bridge is not None:
-                    self._sync_layout()
                     self.bridge.publish_scans(rows, now, all_ranges)
         for event in self.physics.poll_contacts():
             self.contacts_count += 1
@@ -328,7 +327,6 @@ class WorldApp:
             self._next_trail = min((robot.trail.next_time for robot in self.robots.values()), default=math.inf)
         if self.bridge is not None and time.monotonic() >= self._next_markers:
             self._next_markers = time.monotonic() + MARKER_PERIOD
-            self._sync_layout()
             self.bridge.publish_markers(now, poses, self._touching(now))
 
     def _scene(self, poses: np.ndarray) -> lidar.Scene:
@@ -365,7 +363,7 @@ class WorldApp:
         """The status document with each robot's trail and latest scan still raw
         (fleet.world.status.finish_status makes the document of them)."""
         robots = {}
-        self._sync_layout()
+        self._sync_layout()  # the status may follow a reload that no step has seen yet
         poses, row, inputs = self.physics.poses().tolist(), self.physics.row, self._inputs
         ros = self.bridge is not None
         for name, robot in self.robots.items():

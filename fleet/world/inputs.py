@@ -35,6 +35,21 @@ class RobotInputs:
     def __len__(self) -> int:
         return len(self.battery)
 
+    def remapped(self, old: list[str], new: list[str], generation: int) -> RobotInputs:
+        """These inputs, of the robots `old` by row, rearranged for the robots `new` by row (robots
+        new to them: no inputs yet; inputs that are not of `old`: none at all)."""
+        fresh = RobotInputs.empty(generation, len(new))
+        if len(self) != len(old):
+            return fresh
+        where = {name: row for row, name in enumerate(old)}
+        pairs = [(row, where[name]) for row, name in enumerate(new) if name in where]
+        if pairs:
+            to, source = (np.array(side, dtype=np.int64) for side in zip(*pairs, strict=True))
+            fresh.commands[to] = self.commands[source]
+            fresh.battery[to] = self.battery[source]
+            fresh.odom_subscribers[to] = self.odom_subscribers[source]
+        return fresh
+
     def live_commands(self, timeouts: np.ndarray, sim_time: float) -> np.ndarray:
         """(n, 2) linear and angular speed: each robot's latest command, or zero once it is older
         than its cmd_timeout in both sim and wall time (a sim-time-only timeout would stop a

@@ -117,7 +117,7 @@ class RosProcess:
 
     def set_robots(self, generation: int, robots: list[RobotSpec], obstacles: list[ObstacleSpec]) -> None:
         names = [spec.name for spec in robots]
-        self._inputs = _remapped(self._inputs, self._names, names, generation)
+        self._inputs = self._inputs.remapped(self._names, names, generation)
         self._names, self._generation = names, generation
         self._batch.append(("set_robots", generation, robots, obstacles))
         self.flush()
@@ -159,21 +159,6 @@ class RosProcess:
                 self._process.kill()
                 self._process.wait()
         self._conn.close()
-
-
-def _remapped(inputs: RobotInputs, old: list[str], new: list[str], generation: int) -> RobotInputs:
-    """`inputs` of the rows `old` rearranged for the rows `new` (robots new to it: no inputs yet)."""
-    fresh = RobotInputs.empty(generation, len(new))
-    if len(inputs) != len(old):
-        return fresh
-    where = {name: row for row, name in enumerate(old)}
-    pairs = [(row, where[name]) for row, name in enumerate(new) if name in where]
-    if pairs:
-        to, source = (np.array(side, dtype=np.int64) for side in zip(*pairs, strict=True))
-        fresh.commands[to] = inputs.commands[source]
-        fresh.battery[to] = inputs.battery[source]
-        fresh.odom_subscribers[to] = inputs.odom_subscribers[source]
-    return fresh
 
 
 def serve(conn: Connection, ros_args: list[str]) -> None:

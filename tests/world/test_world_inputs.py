@@ -5,7 +5,6 @@ import math
 import numpy as np
 
 from fleet.world.inputs import RobotInputs
-from fleet.world.ros_process import _remapped
 
 
 def test_a_new_layout_keeps_each_robots_inputs_by_name():
@@ -13,7 +12,7 @@ def test_a_new_layout_keeps_each_robots_inputs_by_name():
     old.commands[:] = [(0.1, 0.0, 5.0, 1.0), (0.2, 0.0, 6.0, 2.0), (0.3, 0.0, 7.0, 3.0)]
     old.battery[:] = [10.0, 20.0, 30.0]
     old.odom_subscribers[:] = [1, 2, 3]
-    new = _remapped(old, ["a", "b", "c"], ["c", "new", "a"], generation=2)
+    new = old.remapped(["a", "b", "c"], ["c", "new", "a"], generation=2)
     assert new.generation == 2
     assert new.commands[:, 0].tolist() == [0.3, 0.0, 0.1]
     assert new.battery_of(0) == 30.0 and new.battery_of(1) is None and new.battery_of(2) == 10.0
@@ -26,5 +25,5 @@ def test_inputs_of_another_layout_are_not_mixed_in():
     """A snapshot whose rows do not match the names it is said to be of gives nothing."""
     stale = RobotInputs.empty(1, 2)
     stale.battery[:] = [50.0, 60.0]
-    fresh = _remapped(stale, ["a", "b", "c"], ["a"], generation=3)
+    fresh = stale.remapped(["a", "b", "c"], ["a"], generation=3)
     assert len(fresh) == 1 and np.isnan(fresh.battery[0])
