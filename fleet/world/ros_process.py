@@ -12,7 +12,7 @@ between.  A layout change itself (`set_robots`) waits for the ROS side, so every
 after it names the new rows.
 
 The ROS process ignores SIGINT and SIGTERM (the world stops it after its last status) and exits
-when the physics process closes the socket or dies.
+when the physics process closes the socket; the kernel kills it when the physics process dies.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from fleet.errors import EXIT_FAILURE, FleetError
+from fleet.lifetime import die_with_parent
 from fleet.world.description import ObstacleSpec, RobotSpec
 from fleet.world.inputs import RobotInputs
 
@@ -59,6 +60,9 @@ class RosProcess:
         self._process = subprocess.Popen(
             [sys.executable, "-m", "fleet.world.ros_process", str(theirs.fileno()), json.dumps(ros_args or [])],
             pass_fds=[theirs.fileno()],
+            # Dead with the world even when the world is SIGKILLed (its supervisor's own exit does
+            # that): reading the closed socket and closing rclpy would outlive it by seconds.
+            preexec_fn=die_with_parent,
         )
         theirs.close()
         self._conn = Connection(ours.detach())

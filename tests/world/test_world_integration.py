@@ -247,3 +247,23 @@ def test_the_world_exits_1_when_its_ros_process_dies(start_world):
     assert proc.wait(timeout=20) == 1
     log = (config.parent / "world.log").read_text()
     assert "fleet: error: the world's ROS process exited" in log and "Traceback" not in log, log
+
+
+def test_the_world_s_ros_process_dies_with_the_world(start_world):
+    """A SIGKILLed world (as when its supervisor dies) takes its ROS process along at once: the
+    kernel kills it, even when it could not read the closed socket (here: stopped)."""
+    import signal
+
+    import psutil
+
+    _config, status, proc = start_world(WORLD.format(extra=""), "--as-fast-as-possible")
+    poll(lambda: read_status(status), timeout=30, interval=0.1, what="the world's status file")
+    children = psutil.Process(proc.pid).children()
+    (ros_side,) = [child for child in children if "fleet.world.ros_process" in child.cmdline()]
+    ros_side.send_signal(signal.SIGSTOP)
+    proc.kill()
+    proc.wait(timeout=10)
+    _gone, alive = psutil.wait_procs([ros_side], timeout=10)
+    if alive:
+        ros_side.kill()  # clean up, then fail
+    assert not alive, "the world's ROS process outlived the SIGKILLed world"
