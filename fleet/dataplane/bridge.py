@@ -40,6 +40,7 @@ from typing import Any
 
 from fleet.dataplane.batch import BatchError, batches, messages, record
 from fleet.dataplane.echoes import Echoes
+from fleet.dataplane.take import RawTaker
 
 log = logging.getLogger("fleet.bridge")
 STATS_PERIOD = 10.0  # s between the bridge's traffic lines in its log
@@ -88,8 +89,7 @@ def ros_qos(route, depth: int | None = None):
 
 class Exporter:
     """Local topics -> batches for the agents that bring them in.  Its own thread takes the
-    messages straight from the subscriptions (a wait set and rclpy's take, no executor: the
-    executor ran one Python callback per message and rebuilt its wait set for each)."""
+    messages straight from the subscriptions (fleet.dataplane.take, no executor)."""
 
     def __init__(self, fleet: str, agent: str, routes, node, echoes: dict[str, Echoes]) -> None:
         self.fleet, self.agent, self.node = fleet, agent, node
@@ -108,7 +108,7 @@ class Exporter:
                 node.create_subscription(
                     message_class(r.type), r.name, lambda _: None, ros_qos(r, max(r.depth, EXPORT_DEPTH)), raw=True
                 ),
-                r.name,
+                r.name.encode(),
             )
             for r in routes
         ]
@@ -151,25 +151,9 @@ class Exporter:
                     self._resend.append((agent, topic))
 
     def _run(self) -> None:
-        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-
-        context = self.node.context
-        with contextlib.ExitStack() as in_use:  # rclpy's handles stay valid while entered
-            for subscription, _ in self._subscriptions:
-                in_use.enter_context(subscription.handle)
-            in_use.enter_context(context.handle)
-            wait_set = _rclpy.WaitSet(len(self._subscriptions), 0, 0, 0, 0, 0, context.handle)
-            by_pointer = {s.handle.pointer: (s.handle, s.msg_type, t.encode()) for s, t in self._subscriptions}
-            while not self._stop.is_set() and context.ok():
-                wait_set.clear_entities()
-                for subscription, _ in self._subscriptions:
-                    wait_set.add_subscription(subscription.handle)
-                wait_set.wait(WAKE_PERIOD_NS)
-                taken: list[tuple[bytes, bytes]] = []
-                for pointer in wait_set.get_ready_entities("subscription"):
-                    handle, kind, topic = by_pointer[pointer]
-                    while (message := handle.take_message(kind, True)) is not None:
-                        taken.append((topic, message[0]))
+        with RawTaker(self.node, self._subscriptions) as taker:
+            while not self._stop.is_set() and taker.ok():
+                taken = taker.take(WAKE_PERIOD_NS)
                 self._send(taken)
                 if len(taken) >= BURST:
                     time.sleep(LINGER)
@@ -362,10 +346,13 @@ def main(argv: list[str]) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from fleet.dataplane.receive_buffers import use_large_receive_buffers
     from fleet.rules import service_node_name
     from fleet.runtime.processes import stop_on_signals
 
     stop = stop_on_signals()
+    if warning := use_large_receive_buffers(Path(argv[0]).with_suffix(".fastdds.xml")):
+        log.warning("%s", warning)
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
     # No executor: the exporter takes messages itself, and nothing else here needs spinning.
     node = rclpy.create_node(service_node_name("bridge", fleet), start_parameter_services=False)
