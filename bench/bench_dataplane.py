@@ -256,9 +256,14 @@ def discovery(setup: Setup, robots: int, where: str) -> float | None:
         for k in range(robots)
     ]
     out, _ = observer.communicate(timeout=200)
+    for process in participants:  # SIGTERM: rclpy shuts down and removes its shared memory (LOCALHOST maps some)
+        process.terminate()
     for process in participants:
-        process.kill()
-        process.wait()
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
     at = json.loads(out.strip().splitlines()[-1]).get("converged_at")
     return None if at is None else at - launched
 

@@ -23,6 +23,7 @@ import time
 
 import rclpy
 from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import LaserScan
@@ -146,6 +147,8 @@ def main(argv: list[str]) -> int:
             receive(node, range(first, first + number), seconds, argv[4])
         else:
             {"send": send, "receive": receive, "observe": observe}[role](node, range(first, first + number), seconds)
+    except ExternalShutdownException:  # SIGTERM: the benchmark is done with this process
+        pass
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

@@ -7,7 +7,7 @@ import uuid
 
 import pytest
 
-from fleet.testing.isolation import reserve_domain_id, ros_environment
+from fleet.testing.isolation import discovery_served, reserve_domain_id
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked, terminate
 
 
@@ -51,26 +51,14 @@ def ros_env(ros_domain, monkeypatch, tmp_path_factory):
     ROS_DISCOVERY_SERVER for its later participants even once the variable is gone (measured),
     so in a test process where a fleet test made a discovery client, a later LOCALHOST
     participant would look for that server and find nobody."""
-    from fleet.dataplane.discovery import discovery_server
-    from fleet.runtime.environment import discovery_server_port
-
-    server = discovery_server(
-        f"127.0.0.1:{discovery_server_port(ros_domain)}",
-        ros_environment(ros_domain),
-        tmp_path_factory.mktemp("discovery") / "server.log",
-    )
-    server.keep_running()
-    env = ros_environment(ros_domain, discovery_server=server.key)
-    for key in (
-        "ROS_DOMAIN_ID",
-        "ROS_AUTOMATIC_DISCOVERY_RANGE",
-        "RMW_IMPLEMENTATION",
-        "FASTDDS_BUILTIN_TRANSPORTS",
-        "ROS_DISCOVERY_SERVER",
-    ):
-        monkeypatch.setenv(key, env[key])
-    monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
-    try:
+    with discovery_served(ros_domain, tmp_path_factory.mktemp("discovery") / "server.log") as env:
+        for key in (
+            "ROS_DOMAIN_ID",
+            "ROS_AUTOMATIC_DISCOVERY_RANGE",
+            "RMW_IMPLEMENTATION",
+            "FASTDDS_BUILTIN_TRANSPORTS",
+            "ROS_DISCOVERY_SERVER",
+        ):
+            monkeypatch.setenv(key, env[key])
+        monkeypatch.delenv("ROS_LOCALHOST_ONLY", raising=False)
         yield env
-    finally:
-        server.stop()

@@ -11,11 +11,20 @@ import fcntl
 import random
 import socket
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from fleet.runtime.environment import ros_environment
 
-__all__ = ["DomainReservation", "free_tcp_port", "reserve_domain_id", "ros_environment", "with_domain_id"]
+__all__ = [
+    "DomainReservation",
+    "discovery_served",
+    "free_tcp_port",
+    "reserve_domain_id",
+    "ros_environment",
+    "with_domain_id",
+]
 
 # FastDDS maps domain id d to the UDP ports 7400 + 250 d and up (the fleet's discovery server
 # among them, fleet.runtime.environment).  Above d = 101 those ports lie in Linux's ephemeral
@@ -73,3 +82,20 @@ def with_domain_id(spec, domain_id: int):
     Tests override the spec's ros.domain_id with a reserved one so two runs of the same spec on
     one machine never see each other's topics."""
     return spec.model_copy(update={"ros": spec.ros.model_copy(update={"domain_id": domain_id})})
+
+
+@contextmanager
+def discovery_served(domain_id: int, log_file: Path) -> Iterator[dict[str, str]]:
+    """The environment of ROS processes of `domain_id` that find each other through a Fast DDS
+    discovery server of their own (running while in the `with`), as a deployed fleet's do: UDP
+    only.  With LOCALHOST discovery instead, every participant maps shared memory in /dev/shm,
+    and one killed by a test leaves its segments behind."""
+    from fleet.dataplane.discovery import discovery_server
+    from fleet.runtime.environment import discovery_server_port
+
+    server = discovery_server(f"127.0.0.1:{discovery_server_port(domain_id)}", ros_environment(domain_id), log_file)
+    server.keep_running()
+    try:
+        yield ros_environment(domain_id, discovery_server=server.key)
+    finally:
+        server.stop()

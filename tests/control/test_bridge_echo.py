@@ -13,7 +13,6 @@ from pathlib import Path
 import pytest
 
 from fleet.dataplane.bridge import ECHO_TIMEOUT
-from fleet.runtime.environment import ros_environment
 from fleet.testing.isolation import free_tcp_port
 from fleet.testing.poll import poll
 from fleet.wire import protocol as p
@@ -23,7 +22,7 @@ pytestmark = pytest.mark.integration
 REPLACED = "has not echoed this bridge"
 
 
-def start_bridge(tmp_path: Path, endpoint: str, domain_id: int) -> tuple[subprocess.Popen, Path]:
+def start_bridge(tmp_path: Path, endpoint: str, env: dict[str, str]) -> tuple[subprocess.Popen, Path]:
     config = tmp_path / "lan.bridge.json"
     config.write_text(
         json.dumps(
@@ -41,7 +40,7 @@ def start_bridge(tmp_path: Path, endpoint: str, domain_id: int) -> tuple[subproc
     with open(log, "wb") as out:
         process = subprocess.Popen(
             [sys.executable, "-m", "fleet.dataplane.bridge", str(config)],
-            env=ros_environment(domain_id),
+            env=env,
             stdout=out,
             stderr=subprocess.STDOUT,
         )
@@ -57,7 +56,7 @@ def stop(process: subprocess.Popen) -> None:
         process.wait()
 
 
-def test_the_fleet_router_echoes_and_the_bridge_keeps_its_session(fresh_cluster, tmp_path):
+def test_the_fleet_router_echoes_and_the_bridge_keeps_its_session(fresh_cluster, tmp_path, ros_env):
     cluster = fresh_cluster
     cluster.start_router()
     ping, pong = p.echo_keys("lan", "rack_a")
@@ -67,7 +66,7 @@ def test_the_fleet_router_echoes_and_the_bridge_keeps_its_session(fresh_cluster,
         poll(lambda: client.session.put(ping, b"hello") or echoes, until=bool, timeout=10, what="an echo")
         assert echoes[0] == b"hello"
         subscriber.undeclare()
-    bridge, log = start_bridge(tmp_path, cluster.endpoint, cluster.domain_id)
+    bridge, log = start_bridge(tmp_path, cluster.endpoint, ros_env)
     try:
         poll(
             lambda: log.read_text(), until=lambda text: "bridge of fleet lan" in text, timeout=60, what="the bridge up"
@@ -78,7 +77,7 @@ def test_the_fleet_router_echoes_and_the_bridge_keeps_its_session(fresh_cluster,
         stop(bridge)
 
 
-def test_a_bridge_whose_router_echoes_nothing_opens_a_new_session(tmp_path, domain_id):
+def test_a_bridge_whose_router_echoes_nothing_opens_a_new_session(tmp_path, ros_env):
     """A plain Zenoh router (real, but without the fleet router's echo) stands for a router path
     that has silently stopped carrying this bridge's data."""
     import zenoh
@@ -89,7 +88,7 @@ def test_a_bridge_whose_router_echoes_nothing_opens_a_new_session(tmp_path, doma
     config.insert_json5("listen/endpoints", json.dumps([endpoint]))
     config.insert_json5("scouting/multicast/enabled", "false")
     with zenoh.open(config):
-        bridge, log = start_bridge(tmp_path, endpoint, domain_id)
+        bridge, log = start_bridge(tmp_path, endpoint, ros_env)
         try:
             text = poll(log.read_text, until=lambda text: REPLACED in text, timeout=60, what="the session replaced")
             assert "bridge of fleet lan" in text

@@ -16,8 +16,7 @@ from pathlib import Path
 import pytest
 
 from fleet.dataplane.receive_buffers import RECEIVE_BUFFER_BYTES, RMEM_MAX
-from fleet.runtime.environment import ros_environment
-from fleet.testing.isolation import reserve_domain_id
+from fleet.testing.isolation import discovery_served, reserve_domain_id
 from fleet.testing.poll import poll
 
 pytestmark = pytest.mark.integration
@@ -82,7 +81,7 @@ class Bridges:
         self.processes: list[subprocess.Popen] = []
         self.pids: dict[str, int] = {}
 
-    def start(self, agent: str, domain_id: int, exports: list, imports: list, env: dict | None = None) -> Path:
+    def start(self, agent: str, env: dict[str, str], exports: list, imports: list) -> Path:
         config = self.tmp_path / f"{agent}.bridge.json"
         config.write_text(
             json.dumps(
@@ -101,7 +100,7 @@ class Bridges:
             self.processes.append(
                 subprocess.Popen(
                     [sys.executable, "-m", "fleet.dataplane.bridge", str(config)],
-                    env=env or ros_environment(domain_id),
+                    env=env,
                     stdout=out,
                     stderr=subprocess.STDOUT,
                 )
@@ -121,10 +120,10 @@ class Bridges:
                 process.wait()
 
 
-def ros_process(script: str, domain_id: int, *args: str) -> subprocess.Popen:
+def ros_process(script: str, env: dict[str, str], *args: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-c", script, *args],
-        env=ros_environment(domain_id),
+        env=env,
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
@@ -141,9 +140,14 @@ def received(subscriber: subprocess.Popen) -> list[str]:
 
 
 @pytest.fixture
-def two_domains(domain_id):
-    with reserve_domain_id() as other:
-        yield domain_id, other.domain_id
+def two_domains(domain_id, tmp_path):
+    """Two computers' DDS: the environments of two domains, each with its own discovery server."""
+    with (
+        reserve_domain_id() as other,
+        discovery_served(domain_id, tmp_path / "rack.discovery.log") as rack,
+        discovery_served(other.domain_id, tmp_path / "sim.discovery.log") as sim,
+    ):
+        yield rack, sim
 
 
 @pytest.fixture
@@ -199,7 +203,7 @@ def test_an_exporting_bridge_s_sockets_hold_a_fleet_s_burst(bridges, ros_env, ro
     """The world publishes every robot's scans at once; in the default 212 KiB buffer, 100
     robots' burst overflowed and the kernel dropped 5% of the best-effort scans.  Linux grants
     at most net.core.rmem_max and reports twice what was granted."""
-    bridges.start("sim_host", ros_domain, exports=ROUTES, imports=[], env=ros_env)
+    bridges.start("sim_host", ros_env, exports=ROUTES, imports=[])
     buffers = receive_buffers(bridges.pids["sim_host"], ros_domain)
     assert buffers, "the bridge has no UDP socket in its domain's ports"
     granted = min(RECEIVE_BUFFER_BYTES, int(RMEM_MAX.read_text()))
