@@ -159,19 +159,6 @@ def client_config(
     return config
 
 
-# Zenoh's link I/O runs on its application threads instead of runtimes of their own: a thread
-# wake-up fewer per message on each side.  A Zenoh hop (Python client, router, Python client on
-# two network namespaces) took 0.45-0.47 ms at p50 against 0.52-0.56 ms in three pairs, and 100
-# robots' odometry and scans crossed the zenoh transport as before (bench/README.md).  Read by
-# Zenoh when a process opens its first session; a value the user set is kept.
-RUNTIME_VARIABLE = "ZENOH_RUNTIME"
-RUNTIME = "(rx: (handover: app), tx: (handover: app), acc: (handover: app))"
-
-
-def _use_fleet_runtime() -> None:
-    os.environ.setdefault(RUNTIME_VARIABLE, RUNTIME)
-
-
 def _common(config, lease_ms: int | None) -> None:
     _set_unless_user_set(config, "scouting/multicast/enabled", False)
     _set_unless_user_set(config, "scouting/gossip/enabled", False)
@@ -189,7 +176,6 @@ def open_client(
     import zenoh
 
     config = client_config(connect, user_config, lease_ms, settings)
-    _use_fleet_runtime()
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
@@ -232,7 +218,6 @@ def open_client_retrying(
 def open_router(listen: list[str], user_config: Path | None = None):
     import zenoh
 
-    _use_fleet_runtime()
     try:
         return zenoh.open(router_config(listen, user_config))
     except zenoh.ZError as error:
