@@ -256,7 +256,7 @@ def discovery(setup: Setup, robots: int, where: str) -> float | None:
         for k in range(robots)
     ]
     out, _ = observer.communicate(timeout=200)
-    for process in participants:  # SIGTERM: rclpy shuts down and removes its shared memory (LOCALHOST maps some)
+    for process in participants:  # SIGTERM: rclpy shuts down; what Fast DDS still leaves, measure_discovery cleans
         process.terminate()
     for process in participants:
         try:

@@ -27,8 +27,14 @@ import os
 _PORT_BASE, _DOMAIN_GAIN, _SERVER_OFFSET, SERVER_SLOTS = 7400, 250, 2, 8
 
 
+def domain_ports(domain_id: int) -> range:
+    """The UDP ports of the domain's block: its participants' and its discovery servers'."""
+    first = _PORT_BASE + _DOMAIN_GAIN * domain_id
+    return range(first, first + _DOMAIN_GAIN)
+
+
 def discovery_server_port(domain_id: int, slot: int = 0) -> int:
-    return _PORT_BASE + _DOMAIN_GAIN * domain_id + _SERVER_OFFSET + slot % SERVER_SLOTS
+    return domain_ports(domain_id).start + _SERVER_OFFSET + slot % SERVER_SLOTS
 
 
 def ros_environment(

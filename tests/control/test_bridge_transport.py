@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from fleet.dataplane.receive_buffers import RECEIVE_BUFFER_BYTES, RMEM_MAX
+from fleet.runtime.environment import domain_ports
 from fleet.testing.isolation import discovery_served, reserve_domain_id
 from fleet.testing.poll import poll
 
@@ -193,10 +194,10 @@ def test_a_latched_message_reaches_an_agent_whose_bridge_starts_later(bridges, t
 def receive_buffers(pid: int, domain_id: int) -> list[int]:
     """The receive buffers (bytes, as the kernel reports them) of `pid`'s UDP sockets bound to
     ports of the domain's RTPS block (`ss` lists a socket, then its memory on the next line)."""
-    first = 7400 + 250 * domain_id
+    ports = domain_ports(domain_id)
     listing = subprocess.run(["ss", "-u", "-a", "-m", "-p", "-n"], capture_output=True, text=True, check=True).stdout
     found = re.findall(r':(\d+)\s+\S+\s+users:\(\("[^"]*",pid=(\d+),[^\n]*\n\s*skmem:\(r\d+,rb(\d+)', listing)
-    return [int(rb) for port, owner, rb in found if int(owner) == pid and first <= int(port) < first + 250]
+    return [int(rb) for port, owner, rb in found if int(owner) == pid and int(port) in ports]
 
 
 def test_an_exporting_bridge_s_sockets_hold_a_fleet_s_burst(bridges, ros_env, ros_domain):
