@@ -14,6 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bytecode import compile_checkout
 from bench.machine import machine_description
 
 FLEET = Path(sys.executable).parent / "fleet"
@@ -33,6 +34,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--runs", type=int, default=15)
     args = parser.parse_args()
+    compile_checkout()
     cases = {
         "python -c pass (interpreter + ROS wheels' re-exec)": [sys.executable, "-c", "pass"],
         "fleet --help": [str(FLEET), "--help"],

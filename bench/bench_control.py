@@ -33,6 +33,7 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from bench.bytecode import compile_checkout  # noqa: E402
 from bench.machine import machine_description  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id, ros_environment  # noqa: E402
 from fleet.testing.poll import poll  # noqa: E402
@@ -455,6 +456,7 @@ def main() -> int:
     parser.add_argument("--deploy-robots", type=int, default=100, help="robots of the many-robot deploy (0: skip)")
     parser.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "control.md")
     args = parser.parse_args()
+    compile_checkout()
     results: dict = {}
     baseline(args.runs, results)
     if not args.skip_deploy:

@@ -17,10 +17,13 @@ is measured for comparison.  Runs:
   across two, LOCALHOST with ROS_STATIC_PEERS across two).
 
 Usage: .venv/bin/python bench/bench_dataplane.py [--seconds 20] [--output bench/results/dataplane.md]
-       [--only zenoh] [--robots 100] [--bridge-from CHECKOUT]
+       [--only zenoh] [--robots 100] [--bridge-from CHECKOUT] [--latency-pairs N]
 
 --only zenoh measures the zenoh transport's flows alone; --robots picks the flows' sizes;
 --bridge-from runs the bridges and router of another checkout (with its .venv) (a before/after pair on one machine).
+--latency-pairs N measures only what the zenoh transport adds to one robot's latency: N pairs of
+flows, `dds` across the veth link then `zenoh`, each pair's difference of p50s, written to
+bench/results/dataplane_latency.md (pairs, because single runs drift with the machine's load).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import argparse
 import json
 import os
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -39,6 +43,7 @@ import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bytecode import compile_checkout
 from bench.machine import machine_description
 from fleet.dataplane.discovery import server_command, server_environment
 from fleet.runtime.environment import discovery_server_port, ros_environment
@@ -343,11 +348,18 @@ def main() -> int:
     parser.add_argument("--only", choices=["zenoh"], help="only the zenoh transport's flows")
     parser.add_argument("--robots", type=int, action="append", choices=sorted(RECEIVERS), help="flow sizes")
     parser.add_argument("--bridge-from", type=Path, help="run the bridges and router of this checkout")
+    parser.add_argument("--latency-pairs", type=int, help="only one robot's latency, dds then zenoh, N times")
     args = parser.parse_args()
+    compile_checkout()
+    if args.bridge_from:
+        compile_checkout(args.bridge_from.resolve())
     problem = netns_problem()
     if problem:
         print(f"bench_dataplane: {problem}", file=sys.stderr)
         return 2
+    if args.latency_pairs:
+        output = args.output.with_name("dataplane_latency.md") if args.output.name == "dataplane.md" else args.output
+        return latency_pairs(args.latency_pairs, args.seconds, args.bridge_from, output)
     sizes = args.robots or sorted(RECEIVERS)
     setups = (("one computer", False), ("two computers (veth)", True), ("two computers, zenoh", True))
     rows_flow, rows_discovery, rows_rtf = [], [], []
@@ -400,6 +412,46 @@ def main() -> int:
         lines += world_lines(rows_rtf)
     args.output.write_text("\n".join(lines) + "\n")
     print(f"wrote {args.output}")
+    return 0
+
+
+def latency_pairs(pairs: int, seconds: float, bridge_from: Path | None, output: Path) -> int:
+    """One robot's odometry across the veth link, `dds` then `zenoh`, `pairs` times: what the
+    zenoh transport adds at p50, pair by pair."""
+    rows = []
+    with reserve_domain_id() as reservation, Lan(["sim", "rack"]) as lan:
+        domain = reservation.domain_id
+        for _ in range(pairs):
+            p50s = []
+            for make in (
+                lambda: Setup("two computers (veth)", domain, lan),
+                lambda: ZenohSetup("two computers, zenoh", domain, lan, bridge_from),
+            ):
+                setup = make()
+                try:
+                    p50s.append(flow(setup, 1, seconds)["p50"])
+                finally:
+                    setup.close()
+            rows.append((p50s[0], p50s[1]))
+            print(f"dds {p50s[0]:.2f} ms, zenoh {p50s[1]:.2f} ms: adds {p50s[1] - p50s[0]:.2f} ms", flush=True)
+    added = sorted(zenoh - dds for dds, zenoh in rows)
+    lines = [
+        "# Data plane: what the zenoh transport adds to one robot's latency",
+        "",
+        f"Machine: {machine_description()}.",
+        f"Command: `.venv/bin/python bench/bench_dataplane.py {' '.join(sys.argv[1:])}`.",
+        "",
+        f"One robot's odometry (50 Hz, reliable) from one computer to the other for {seconds:g} s,",
+        "over `dds` and then over `zenoh`, in turn; one-way p50 in ms.",
+        "",
+        "| pair | dds p50 | zenoh p50 | zenoh adds |",
+        "|---|---|---|---|",
+        *(f"| {n} | {dds:.2f} | {zenoh:.2f} | {zenoh - dds:.2f} |" for n, (dds, zenoh) in enumerate(rows, 1)),
+        "",
+        f"Median added: **{statistics.median(added):.2f} ms** (range {added[0]:.2f} to {added[-1]:.2f}).",
+    ]
+    output.write_text("\n".join(lines) + "\n")
+    print(f"wrote {output}")
     return 0
 
 

@@ -23,6 +23,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bytecode import compile_checkout
 from bench.machine import machine_description
 from fleet.cli.render_cmd import write_bundles
 from fleet.expand import expand_fleet
@@ -188,6 +189,7 @@ def main() -> None:
     parser.add_argument("--scaling", action="store_true", help="time `fleet render --json` of big fleets")
     parser.add_argument("--sizes", type=int, nargs="+", default=[10000, 20000])
     args = parser.parse_args()
+    compile_checkout()
     if args.scaling:
         scaling(args.sizes, args.repeat if args.repeat != 7 else 5)
         return

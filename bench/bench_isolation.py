@@ -29,6 +29,7 @@ import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bytecode import compile_checkout
 from bench.machine import machine_info
 from fleet.runtime.hosting import HostPool
 from fleet.runtime.processes import group_members
@@ -271,6 +272,7 @@ def main() -> int:
     )
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "isolation.md")
     args = parser.parse_args()
+    compile_checkout()
     info = machine_info()
     limits = {name: int(value) for name, value in (item.split("=", 1) for item in args.limit)}
     results = []

@@ -33,6 +33,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bytecode import compile_checkout
 from bench.machine import machine_info
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -214,11 +215,13 @@ def main() -> None:
         model, count, sim = args.child
         print("RESULT " + json.dumps(run_one(model, int(count), float(sim))), flush=True)
         return
+    compile_checkout()
 
     sys.path.insert(0, str(ROOT))
     from fleet.testing.isolation import reserve_domain_id, ros_environment
 
     if args.baseline:
+        compile_checkout(args.baseline.resolve())
         compare(args.baseline.resolve(), args.repeats)
         return
     light_counts, husky_counts = ([1, 10, 50], [1, 10]) if args.quick else (LIGHT_COUNTS, HUSKY_COUNTS)
