@@ -1,9 +1,10 @@
 """The `zenoh` transport end to end: two bridges on the fleet router, each on its own ROS domain
 (standing for two computers), real rclpy publishers and subscribers on either side.
 
-Checked: a reliable topic's bursts cross whole and in order (the exporter batches them); a
-latched (transient local) topic's message reaches an agent whose bridge starts after it was
-published; a topic no agent brings in is not sent."""
+Checked: a reliable topic's bursts cross whole and in order (the exporter batches them); messages
+of camera-image size, larger than a Zenoh batch, cross whole; a latched (transient local) topic's
+message reaches an agent whose bridge starts after it was published; a topic no agent brings in
+is not sent."""
 
 from __future__ import annotations
 
@@ -28,12 +29,14 @@ ROUTES = [
     {"name": "/a1/unused", "type": "std_msgs/msg/String", "reliable": True},
 ]
 
-# A publisher: waits for a subscriber (unless latched), sends COUNT messages in bursts of 100.
+# A publisher: waits for a subscriber (unless latched), sends COUNT messages in bursts of 100,
+# message k being str(k) padded with dots to SIZE characters (if SIZE is given).
 PUBLISH = """
 import sys, time, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy
 from std_msgs.msg import String
 topic, count, latched = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "latched"
+size = int(sys.argv[4]) if len(sys.argv) > 4 else 0
 rclpy.init()
 node = rclpy.create_node("publisher")
 qos = QoSProfile(depth=1 if latched else 100, reliability=ReliabilityPolicy.RELIABLE,
@@ -43,7 +46,7 @@ while not latched and not pub.get_subscription_count():
     time.sleep(0.1)
 time.sleep(1.0)
 for k in range(count):
-    pub.publish(String(data=str(k)))
+    pub.publish(String(data=str(k).ljust(size, '.')))
     if k % 100 == 99:
         time.sleep(0.1)
 print("sent", flush=True)
@@ -52,7 +55,7 @@ sys.stdin.read()  # until the test closes stdin: latched data stays available
 
 # A subscriber: says "ready" once matched with the importing bridge's publisher (a volatile
 # message sent before would be lost to it in DDS, bridge or not), then prints one JSON line with
-# what it received once nothing came for 3 s.
+# what it received once nothing came for 3 s: each message without its padding, and its length.
 SUBSCRIBE = """
 import json, sys, time, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy
@@ -60,11 +63,11 @@ from std_msgs.msg import String
 topic, latched = sys.argv[1], sys.argv[2] == "latched"
 rclpy.init()
 node = rclpy.create_node("subscriber")
-got, last = [], [time.monotonic()]
+got, sizes, last = [], [], [time.monotonic()]
 qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                  durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 def on(msg):
-    got.append(msg.data); last[0] = time.monotonic()
+    got.append(msg.data.rstrip(".")); sizes.append(len(msg.data)); last[0] = time.monotonic()
 sub = node.create_subscription(String, topic, on, qos)
 deadline = time.monotonic() + 60
 while time.monotonic() < deadline and not sub.get_publisher_count():  # the bridge's publisher
@@ -72,7 +75,7 @@ while time.monotonic() < deadline and not sub.get_publisher_count():  # the brid
 print("ready", flush=True)
 while time.monotonic() < deadline and not (got and time.monotonic() - last[0] > 3.0):
     rclpy.spin_once(node, timeout_sec=0.05)
-print(json.dumps(got), flush=True)
+print(json.dumps({"data": got, "sizes": sizes}), flush=True)
 """
 
 
@@ -135,7 +138,8 @@ def ready(subscriber: subprocess.Popen) -> None:
     assert subscriber.stdout is not None and subscriber.stdout.readline().strip() == "ready"
 
 
-def received(subscriber: subprocess.Popen) -> list[str]:
+def received(subscriber: subprocess.Popen) -> dict[str, list]:
+    """{"data": [each message without its padding], "sizes": [each message's length]}"""
     out, _ = subscriber.communicate(timeout=90)
     return json.loads(out.strip().splitlines()[-1])
 
@@ -169,12 +173,30 @@ def test_a_reliable_topic_crosses_whole_and_in_order(bridges, two_domains):
     ready(subscriber)
     publisher = ros_process(PUBLISH, rack, "/a1/odom", "1000", "volatile")
     try:
-        assert received(subscriber) == [str(k) for k in range(1000)]
+        assert received(subscriber)["data"] == [str(k) for k in range(1000)]
     finally:
         publisher.kill()
         publisher.wait()
     bridges.stop()  # its last line counts what it sent: /a1/unused had no importer, nothing of it went
     assert "stopping: 1000 messages out" in rack_log.read_text()
+
+
+IMAGE_BYTES = 2_000_000  # a camera image: 30 times a Zenoh batch (64 KiB), so Zenoh fragments it
+
+
+def test_messages_larger_than_a_zenoh_batch_cross_whole(bridges, two_domains):
+    rack, sim = two_domains
+    bridges.start("sim_host", sim, exports=[], imports=ROUTES)
+    bridges.start("rack_a", rack, exports=ROUTES, imports=[])
+    subscriber = ros_process(SUBSCRIBE, sim, "/a1/odom", "volatile")
+    ready(subscriber)
+    publisher = ros_process(PUBLISH, rack, "/a1/odom", "5", "volatile", str(IMAGE_BYTES))
+    try:
+        got = received(subscriber)
+    finally:
+        publisher.kill()
+        publisher.wait()
+    assert got == {"data": ["0", "1", "2", "3", "4"], "sizes": [IMAGE_BYTES] * 5}
 
 
 def test_a_latched_message_reaches_an_agent_whose_bridge_starts_later(bridges, two_domains):
@@ -185,7 +207,7 @@ def test_a_latched_message_reaches_an_agent_whose_bridge_starts_later(bridges, t
         assert publisher.stdout is not None and publisher.stdout.readline().strip() == "sent"
         bridges.start("sim_host", sim, exports=[], imports=ROUTES)
         subscriber = ros_process(SUBSCRIBE, sim, "/map", "latched")
-        assert received(subscriber) == ["0"]
+        assert received(subscriber)["data"] == ["0"]
     finally:
         publisher.kill()
         publisher.wait()

@@ -1,0 +1,64 @@
+"""fleet's Zenoh sessions read their links on Zenoh's application thread (fleet.wire.session
+ZENOH_RUNTIME), in the router and in clients, without leaving the setting to the processes they
+start; a user's own ZENOH_RUNTIME wins."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+# Opens a client session to the router at argv[1], then prints its threads' names and whether
+# ZENOH_RUNTIME is left in its environment (what a process it started would inherit).
+CLIENT = """
+import json, os, sys
+from pathlib import Path
+from fleet.wire.session import open_client
+session = open_client([sys.argv[1]])
+session.put("fleet/test/runtime", b"x")  # a link in use
+names = sorted(Path(task, "comm").read_text().strip() for task in Path("/proc/self/task").iterdir())
+print(json.dumps({"threads": names, "left": os.environ.get("ZENOH_RUNTIME")}))
+session.close()
+"""
+
+
+def thread_names(pid: int) -> list[str]:
+    return sorted(Path(task, "comm").read_text().strip() for task in Path(f"/proc/{pid}/task").iterdir())
+
+
+def zenoh_runtimes(names: list[str]) -> set[str]:
+    """Zenoh names its runtimes' threads <runtime>-<index>: app-0, rx-1, tx-0, ..."""
+    return {name.rpartition("-")[0] for name in names if name.rpartition("-")[2].isdigit()}
+
+
+def client(endpoint: str, **env: str) -> dict:
+    environment = {key: value for key, value in os.environ.items() if key != "ZENOH_RUNTIME"} | env
+    out = subprocess.run(
+        [sys.executable, "-c", CLIENT, endpoint], env=environment, capture_output=True, text=True, timeout=60
+    )
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_the_router_and_clients_read_links_on_the_application_thread(fresh_cluster):
+    fresh_cluster.start_router()
+    seen = client(fresh_cluster.endpoint)
+    assert "app" in zenoh_runtimes(seen["threads"]) and "rx" not in zenoh_runtimes(seen["threads"]), seen
+    assert seen["left"] is None  # not inherited by what the process starts
+    router = fresh_cluster.pid("router")
+    assert router is not None  # it has read this client's link, and those of the readiness checks
+    runtimes = zenoh_runtimes(thread_names(router))
+    assert "app" in runtimes and "rx" not in runtimes, runtimes
+
+
+def test_a_users_own_zenoh_runtime_wins(fresh_cluster):
+    fresh_cluster.start_router()
+    seen = client(fresh_cluster.endpoint, ZENOH_RUNTIME="(rx: (worker_threads: 1))")
+    assert "rx" in zenoh_runtimes(seen["threads"]), seen
+    assert seen["left"] == "(rx: (worker_threads: 1))"
