@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from fleet.runtime.environment import ros_environment
+from fleet.runtime.environment import SERVER_SLOTS, discovery_server_port, ros_environment
 
 __all__ = [
     "DomainReservation",
@@ -26,12 +26,29 @@ __all__ = [
     "with_domain_id",
 ]
 
-# FastDDS maps domain id d to the UDP ports 7400 + 250 d and up (the fleet's discovery server
-# among them, fleet.runtime.environment).  Above d = 101 those ports lie in Linux's ephemeral
-# range (32768..60999), where every DDS participant also binds sockets for sending: a fleet of
-# one test could find its discovery server's port taken by another test's process.  So ids
-# 50..101: clear of that range, of 0 (the default everyone uses) and of the low ids people pick.
-_DOMAIN_RANGE = range(50, 102)
+# Fast DDS maps domain id d to a block of UDP ports (fleet.runtime.environment.domain_ports),
+# the fleet's discovery servers among them.  Ports in Linux's ephemeral range are where every
+# DDS participant also binds sockets for sending: a fleet of one test could find its discovery
+# server's port taken by another test's process.  So tests use ids from 50 (clear of 0, the
+# default everyone uses, and of the low ids people pick) up to the last whose servers' ports lie
+# below that range: 50..101 with Linux's default range, 32768..60999.
+_FIRST_TEST_DOMAIN = 50
+_EPHEMERAL_PORTS = Path("/proc/sys/net/ipv4/ip_local_port_range")
+_DEFAULT_EPHEMERAL_START = 32768
+
+
+def _test_domains() -> range:
+    try:
+        ephemeral_start = int(_EPHEMERAL_PORTS.read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        ephemeral_start = _DEFAULT_EPHEMERAL_START
+    last = _FIRST_TEST_DOMAIN
+    while discovery_server_port(last + 1, SERVER_SLOTS - 1) < ephemeral_start:
+        last += 1
+    return range(_FIRST_TEST_DOMAIN, last + 1)
+
+
+_DOMAIN_RANGE = _test_domains()
 _LOCK_DIR = Path(tempfile.gettempdir()) / "fleet-domain-locks"
 
 
