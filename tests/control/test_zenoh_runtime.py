@@ -14,16 +14,19 @@ import pytest
 
 pytestmark = pytest.mark.integration
 
-# Opens a client session to the router at argv[1], then prints its threads' names and whether
-# ZENOH_RUNTIME is left in its environment (what a process it started would inherit).
+# Opens a client session to the router at argv[1] and asks the router's registry for its status:
+# once the answer is in, this process has read its link, and so has the router.  Then prints its
+# threads' names and whether ZENOH_RUNTIME is left in its environment (what a process it started
+# would inherit).
 CLIENT = """
 import json, os, sys
 from pathlib import Path
+from fleet.wire.protocol import status_query
 from fleet.wire.session import open_client
 session = open_client([sys.argv[1]])
-session.put("fleet/test/runtime", b"x")  # a link in use
+answers = [reply for reply in session.get(status_query("probe"), timeout=30) if reply.ok is not None]
 names = sorted(Path(task, "comm").read_text().strip() for task in Path("/proc/self/task").iterdir())
-print(json.dumps({"threads": names, "left": os.environ.get("ZENOH_RUNTIME")}))
+print(json.dumps({"answers": len(answers), "threads": names, "left": os.environ.get("ZENOH_RUNTIME")}))
 session.close()
 """
 
@@ -43,7 +46,9 @@ def client(endpoint: str, **env: str) -> dict:
         [sys.executable, "-c", CLIENT, endpoint], env=environment, capture_output=True, text=True, timeout=60
     )
     assert out.returncode == 0, out.stderr
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    assert seen["answers"] >= 1, seen  # the router's registry answered: both sides read the link
+    return seen
 
 
 def test_the_router_and_clients_read_links_on_the_application_thread(fresh_cluster):
@@ -52,7 +57,7 @@ def test_the_router_and_clients_read_links_on_the_application_thread(fresh_clust
     assert "app" in zenoh_runtimes(seen["threads"]) and "rx" not in zenoh_runtimes(seen["threads"]), seen
     assert seen["left"] is None  # not inherited by what the process starts
     router = fresh_cluster.pid("router")
-    assert router is not None  # it has read this client's link, and those of the readiness checks
+    assert router is not None  # it has read this client's link: it answered the query
     runtimes = zenoh_runtimes(thread_names(router))
     assert "app" in runtimes and "rx" not in runtimes, runtimes
 
