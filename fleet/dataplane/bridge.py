@@ -316,15 +316,28 @@ class Bridge:
         self.last_echo = time.monotonic()
 
 
+# A bridge reads its one link (to the router) on Zenoh's application thread instead of the two
+# threads of Zenoh's own rx runtime: the `zenoh` transport's crossing took 0.05 ms less by the
+# median of 8 pairs (bench/README.md), where one rx thread of its own gained nothing.  Not in the
+# router (0.14 ms with it there): one thread would read all its links, and with that a robot on a
+# live computer was once seen degraded while another computer's cable was out.  Nor tx: handing
+# it over too left an 8 MiB request unanswered.
+ZENOH_RUNTIME = "(rx: (handover: app))"
+
+
+def _open_session(connect: list[str], zenoh_config: Path | None, stop: threading.Event):
+    from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
+
+    return open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop, SESSION_SETTINGS, ZENOH_RUNTIME)
+
+
 def _replace_session(session, bridge: Bridge, connect: list[str], zenoh_config: Path | None, stop: threading.Event):
     """A new session for a connected one that the router no longer echoes (seen after a link to
     the router dropped and came back: Zenoh reconnected, but nothing reached this bridge)."""
-    from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
-
     log.warning("the router has not echoed this bridge for %.0f s: opening a new Zenoh session", ECHO_TIMEOUT)
     with contextlib.suppress(Exception):  # a broken session may not close cleanly: drop it anyway
         session.close()
-    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop, SESSION_SETTINGS)
+    session = _open_session(connect, zenoh_config, stop)
     if session is not None:
         bridge.attach(session)
     return session
@@ -333,7 +346,6 @@ def _replace_session(session, bridge: Bridge, connect: list[str], zenoh_config: 
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s fleet.bridge %(levelname)s %(message)s")
     from fleet.wire.protocol import BridgeRoutes
-    from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
 
     try:
         config = json.loads(Path(argv[0]).read_text())
@@ -357,7 +369,7 @@ def main(argv: list[str]) -> int:
     # No executor: the exporter takes messages itself, and nothing else here needs spinning.
     node = rclpy.create_node(service_node_name("bridge", fleet), start_parameter_services=False)
     bridge = Bridge(fleet, agent, routes.exports, routes.imports, node)
-    session = open_client_retrying(connect, zenoh_config, AGENT_LEASE_MS, stop, SESSION_SETTINGS)
+    session = _open_session(connect, zenoh_config, stop)
     try:
         if session is None:
             return 0

@@ -121,24 +121,18 @@ def _set_unless_user_set(config, key: str, value) -> None:
         config.insert_json5(key, json.dumps(value))
 
 
-# Zenoh reads links on a runtime of two threads of its own ("rx"); handed over to its one
-# application thread, a message wakes fewer threads on its way through the router and into a
-# bridge: the `zenoh` transport's crossing took 0.14 ms less by the median of 8 pairs, where rx
-# on one thread of its own gained nothing (bench/README.md).  Only rx: handing tx over as well
-# left an 8 MiB request unanswered (a push waiting for the thread that would send it).
-ZENOH_RUNTIME = "(rx: (handover: app))"
 _RUNTIME_VARIABLE = "ZENOH_RUNTIME"
 
 
 @contextlib.contextmanager
-def _our_runtime() -> Iterator[None]:
-    """Zenoh reads ZENOH_RUNTIME once, when a process opens its first session: ours is set while a
-    session opens, and not left for the processes this one starts (nodes on rmw_zenoh would read
-    it too).  A user's own setting wins."""
-    if _RUNTIME_VARIABLE in os.environ:
+def _zenoh_runtime(runtime: str | None) -> Iterator[None]:
+    """Zenoh reads ZENOH_RUNTIME (its threads) once, when a process opens its first session:
+    `runtime` is set while a session opens, and not left for the processes this one starts (nodes
+    on rmw_zenoh would read it too).  A user's own setting wins."""
+    if runtime is None or _RUNTIME_VARIABLE in os.environ:
         yield
         return
-    os.environ[_RUNTIME_VARIABLE] = ZENOH_RUNTIME
+    os.environ[_RUNTIME_VARIABLE] = runtime
     try:
         yield
     finally:
@@ -196,14 +190,19 @@ def _common(config, lease_ms: int | None) -> None:
 
 
 def open_client(
-    connect: list[str], user_config: Path | None = None, lease_ms: int | None = None, settings: dict | None = None
+    connect: list[str],
+    user_config: Path | None = None,
+    lease_ms: int | None = None,
+    settings: dict | None = None,
+    runtime: str | None = None,
 ) -> zenoh.Session:
-    """Open a client session or raise ControlError (router unreachable or credentials refused)."""
+    """Open a client session or raise ControlError (router unreachable or credentials refused).
+    `runtime`: the process's ZENOH_RUNTIME, if this is its first session (else Zenoh's default)."""
     import zenoh
 
     config = client_config(connect, user_config, lease_ms, settings)
     try:
-        with _our_runtime():
+        with _zenoh_runtime(runtime):
             return zenoh.open(config)
     except zenoh.ZError as error:
         endpoints = json.loads(config.get_json("connect/endpoints"))
@@ -230,12 +229,13 @@ def open_client_retrying(
     lease_ms: int | None,
     stop: threading.Event,
     settings: dict | None = None,
+    runtime: str | None = None,
 ) -> zenoh.Session | None:
     """For daemons: retry until the router answers (or `stop` is set, then None)."""
     delay = 0.2
     while not stop.is_set():
         try:
-            return open_client(connect, user_config, lease_ms, settings)
+            return open_client(connect, user_config, lease_ms, settings, runtime)
         except ControlError:
             stop.wait(delay)
             delay = min(delay * 2, 2.0)
@@ -245,10 +245,8 @@ def open_client_retrying(
 def open_router(listen: list[str], user_config: Path | None = None):
     import zenoh
 
-    config = router_config(listen, user_config)
     try:
-        with _our_runtime():
-            return zenoh.open(config)
+        return zenoh.open(router_config(listen, user_config))
     except zenoh.ZError as error:
         raise ControlError(f"cannot start the router on {', '.join(listen)}: {_first_line(error)}") from None
 

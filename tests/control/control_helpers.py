@@ -129,3 +129,12 @@ def wait_processes_gone(pids, timeout: float) -> None:
         what=f"processes {sorted(pids)} to end",
         describe=lambda alive: f"still alive: {alive}",
     )
+
+
+def thread_names(pid: int) -> list[str]:
+    return sorted(Path(task, "comm").read_text().strip() for task in Path(f"/proc/{pid}/task").iterdir())
+
+
+def zenoh_runtimes(names: list[str]) -> set[str]:
+    """Zenoh names its runtimes' threads <runtime>-<index>: app-0, rx-1, tx-0, ..."""
+    return {name.rpartition("-")[0] for name in names if name.rpartition("-")[2].isdigit()}

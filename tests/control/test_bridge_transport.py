@@ -20,6 +20,7 @@ from fleet.dataplane.receive_buffers import RECEIVE_BUFFER_BYTES, RMEM_MAX
 from fleet.runtime.environment import domain_ports
 from fleet.testing.isolation import discovery_served, reserve_domain_id
 from fleet.testing.poll import poll
+from tests.control.control_helpers import thread_names, zenoh_runtimes
 
 pytestmark = pytest.mark.integration
 
@@ -177,6 +178,8 @@ def test_a_reliable_topic_crosses_whole_and_in_order(bridges, two_domains):
     finally:
         publisher.kill()
         publisher.wait()
+    # The importing bridge read them on Zenoh's application thread (fleet.dataplane.bridge.ZENOH_RUNTIME).
+    assert "rx" not in zenoh_runtimes(thread_names(bridges.pids["sim_host"]))
     bridges.stop()  # its last line counts what it sent: /a1/unused had no importer, nothing of it went
     assert "stopping: 1000 messages out" in rack_log.read_text()
 

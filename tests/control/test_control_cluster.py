@@ -89,7 +89,7 @@ def test_changing_one_robot_restarts_only_it(cluster):
     assert changes == {"robot1": "unchanged", "robot2": "restart", "robot3": "unchanged"}
 
     outcome = cluster.deploy(spec, sets=["robot2.sleeper.period=2.0"])
-    assert outcome.ok
+    assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)
     assert outcome.replies["hostB"].changes.restart == ["robot2"]
     assert outcome.replies["hostB"].changes.unchanged == ["robot3"]
     assert outcome.replies["hostA"].changes.nothing
@@ -106,7 +106,7 @@ def test_removing_a_robot_stops_it(cluster):
     gone = robot(cluster.view("tiny"), "robot3").pids
     spec = cluster.spec(robots=[{"name": "robot1"}, {"name": "robot2", "agent": "hostB"}])
     outcome = cluster.deploy(spec)
-    assert outcome.ok
+    assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)
     assert outcome.replies["hostB"].changes.stop == ["robot3"]
     view = cluster.view("tiny")
     assert {row.name for row in view.robots} == {"robot1", "robot2"}
@@ -118,7 +118,7 @@ def test_robot_moved_to_another_agent(cluster):
     cluster.deploy(cluster.spec())
     spec = cluster.spec(robots=[{"name": "robot1"}, {"name": "robot2", "agent": "hostB"}, {"name": "robot3"}])
     outcome = cluster.deploy(spec)
-    assert outcome.ok
+    assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)
     assert {row.name: row.agent for row in cluster.view("tiny").robots}["robot3"] == "hostA"
 
 

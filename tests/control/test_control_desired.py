@@ -86,7 +86,7 @@ def test_down_while_an_agent_is_down_stops_its_robots_when_it_returns(fresh_two_
 def test_bad_desired_states_are_ignored(fresh_two_agents):
     cluster = fresh_two_agents
     outcome = cluster.deploy(cluster.spec())
-    assert outcome.ok
+    assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)
     before = cluster.view("tiny")
     newer = p.ApplyRequest(
         fleet="tiny", agent="hostA", generation=outcome.generation + 1, domain_id=cluster.domain_id, bundles=[]

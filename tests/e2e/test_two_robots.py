@@ -195,8 +195,16 @@ def test_robot_added_by_redeploy_joins_and_patrols(fleet, tmp_path):
         # which starts at the spawn pose: the first lies 0.5 m ahead).
         _, x, y = watch.samples["robot3"][0]
         assert math.hypot(x - 5.0, y - 0.5) < 0.3, watch.samples["robot3"][:3]
+        # Its spawn pose is also its last waypoint ((0, 0) in its odom frame), so waiting for two
+        # reached waypoints was met 0.2 m from it (and the others had driven under 0.5 m): it is
+        # its waypoint 1 that shows it patrols, 2.5 m of driving ahead, past waypoint 0.
         route = RouteProgress(fleet, "robot3")
-        fleet.wait_for(lambda: route.update() >= 2, sim_timeout=20, what="robot3 to reach its first two waypoints")
+
+        def reached_waypoint_1() -> bool:
+            route.update()
+            return 1 in route.reached
+
+        fleet.wait_for(reached_waypoint_1, sim_timeout=20, what="robot3 to reach its waypoint 1")
 
     changes = outcome.replies["local"].changes
     assert (changes.start, changes.hot_update, sorted(changes.unchanged)) == (["robot3"], ["world"], list(ROBOTS))
