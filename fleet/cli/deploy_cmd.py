@@ -145,14 +145,15 @@ class _DeployProgress:
 
 
 def _print_outcome(outcome, out) -> None:
+    from fleet.cli.output import labelled
     from fleet.cli.status_view import print_view
     from fleet.wire import protocol as p
 
     for agent_name, reply in sorted(outcome.replies.items()):
         if not isinstance(reply, p.ApplyReply):
-            out.print(f"[red]agent {agent_name}: unreachable[/red] ({reply}); its robots stay pending")
+            out.print(labelled(f"agent {agent_name}: unreachable", "red", f"({reply}); its robots stay pending"))
         elif not reply.accepted:
-            out.print(f"[red]agent {agent_name} refused generation {reply.generation}:[/red] {reply.reason}")
+            out.print(labelled(f"agent {agent_name} refused generation {reply.generation}:", "red", reply.reason))
         elif not reply.changes.nothing:
             c = reply.changes
             parts = [
@@ -170,7 +171,7 @@ def _print_outcome(outcome, out) -> None:
     if outcome.nothing_changed:
         out.print("nothing changed: every robot was already running this description (no restarts)")
     if outcome.superseded_by:
-        out.print(f"[yellow]superseded:[/yellow] a later deploy (generation {outcome.superseded_by}) won")
+        out.print(labelled("superseded:", "yellow", f"a later deploy (generation {outcome.superseded_by}) won"))
     if outcome.nothing_changed and outcome.ok and outcome.view is not None:
         # The table would repeat `fleet status` row for row (seconds of output at 1,000 robots).
         robots = [row for row in outcome.view.robots if row.kind == "robot"]
@@ -181,15 +182,13 @@ def _print_outcome(outcome, out) -> None:
     elif outcome.view is not None:
         print_view(outcome.view, out, agents=False)
     if outcome.discovery is not None and outcome.discovery.note:
-        out.print(f"[yellow]note:[/yellow] {outcome.discovery.note}")
+        out.print(labelled("note:", "yellow", outcome.discovery.note))
     if outcome.timed_out:
         stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
-        out.print(
-            "[red]timed out[/red] waiting for every robot to run; not running: "
-            + "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
-        )
+        stuck_text = "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
+        out.print(labelled("timed out", "red", f"waiting for every robot to run; not running: {stuck_text}"))
     elif outcome.ok:
-        out.print("[green]fleet up[/green]")
+        out.print(labelled("fleet up", "green"))
 
 
 def diff(
@@ -214,12 +213,14 @@ def diff(
     if json:
         print_json([asdict(row) for row in rows])
         return
+    from rich.text import Text
+
     from fleet.cli.output import table as make_table
 
     colours = {"start": "green", "stop": "red", "restart": "yellow", "move": "yellow", "hot-update": "cyan"}
     table = make_table("robot", "agent", "change", "detail", title=f"fleet {expansion.fleet}: deploy would")
     for row in rows:
         colour = colours.get(row.change)
-        change = f"[{colour}]{row.change}[/{colour}]" if colour else row.change
+        change = Text(row.change, style=colour or "")
         table.add_row(row.robot, row.agent, change, row.detail)
     console().print(table)

@@ -41,7 +41,17 @@ def console(stderr: bool = False):
     # default 80 columns, let them be as wide as their content, like kubectl does.
     width = None if stream.isatty() else 200
     # soft_wrap: long messages (paths) stay on one line instead of being broken mid-word.
-    return Console(stderr=stderr, highlight=False, soft_wrap=True, width=width)
+    # markup and emoji off: what is printed holds users' values (parameters, paths, reasons), and
+    # rich would read `[front, back]` as a style tag and drop it, `base:robot:link` as an emoji
+    # code. Styles are given as rich Text's (see `labelled`), never inside strings.
+    return Console(stderr=stderr, highlight=False, soft_wrap=True, width=width, markup=False, emoji=False)
+
+
+def labelled(label: str, style: str, text: str = ""):
+    """`label` in `style`, then `text` as it is: "warning: ...", "note: ...", "fleet up"."""
+    from rich.text import Text
+
+    return Text.assemble((label, style), f" {text}" if text else "")
 
 
 def table(*columns: str, title: str | None = None):

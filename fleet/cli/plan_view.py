@@ -60,18 +60,16 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
 
 
 def print_plan(expansion: Expansion, console) -> None:
-    from fleet.cli.output import table
+    from fleet.cli.output import labelled, table
 
     data = plan_data(expansion)
-    console.print(
-        f"[bold]fleet {data['fleet']}[/bold]  ROS_DOMAIN_ID={data['domain_id']}  "
-        f"use_sim_time={str(data['use_sim_time']).lower()}  "
-        + (
-            f"world on agent {data['world']['agent']} ({data['world']['obstacles']} obstacles)"
-            if data["world"]
-            else "no world"
-        )
+    world = (
+        f"world on agent {data['world']['agent']} ({data['world']['obstacles']} obstacles)"
+        if data["world"]
+        else "no world"
     )
+    settings = f"ROS_DOMAIN_ID={data['domain_id']}  use_sim_time={str(data['use_sim_time']).lower()}  {world}"
+    console.print(labelled(f"fleet {data['fleet']}", "bold", f" {settings}"))
     robots = table("robot", "agent", "namespace", "template", "nodes", "model", "pose x,y,yaw", title="Robots")
     for robot in data["robots"]:
         nodes = ", ".join(node["name"] + ("?" if node["conditional"] else "") for node in robot["nodes"])
@@ -86,7 +84,7 @@ def print_plan(expansion: Expansion, console) -> None:
             f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}",
         )
     console.print(robots)
-    console.print("[dim]? = started only when its launch condition holds (e.g. enable_safety)[/dim]")
+    console.print(labelled("? = started only when its launch condition holds (e.g. enable_safety)", "dim"))
     parameters = table("robot", "node", "parameter", "value", "from", title="Effective parameters")
     for robot in data["robots"]:
         for node, values in robot["parameters"].items():
@@ -95,7 +93,7 @@ def print_plan(expansion: Expansion, console) -> None:
                 parameters.add_row(robot["name"], node, name, format_value(entry["value"]), entry["from"], style=style)
     console.print(parameters)
     for warning in data["warnings"]:
-        console.print(f"[yellow]warning:[/yellow] {warning}")
+        console.print(labelled("warning:", "yellow", warning))
 
 
 def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:

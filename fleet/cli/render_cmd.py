@@ -34,7 +34,7 @@ def render(
 
     Without -o, print what would be deployed: robots, agents, nodes and effective parameters.
     """
-    from fleet.cli.output import console, print_json
+    from fleet.cli.output import console, labelled, print_json
     from fleet.cli.plan_view import explain_data, plan_data, print_explain, print_plan
 
     if output is not None:
@@ -54,7 +54,7 @@ def render(
     else:
         out = console()
         for warning in expansion.warnings:
-            out.print(f"[yellow]warning:[/yellow] {warning}")
+            out.print(labelled("warning:", "yellow", warning))
         out.print(
             f"wrote {len(written)} files for {len(expansion.robots)} robots"
             + (" and the world" if expansion.bundle("world") else "")

@@ -21,7 +21,7 @@ def view_tables(view, agents: bool = True):
             "agent", "state", "last seen", "host", "address", "cores", "backends", "fleets", title="Agents"
         )
         for row in view.agents:
-            state = "[green]online[/green]" if row.online else "[red]offline[/red]"
+            state = Text("online", style="green") if row.online else Text("offline", style="red")
             seen = "now" if row.online else (_ago(row.last_seen) if row.last_seen is not None else "never")
             table.add_row(
                 row.name,
@@ -46,7 +46,7 @@ def view_tables(view, agents: bool = True):
         colour = colours.get(row.state, "red")
         pose = f"{row.pose.get('x', 0):.2f},{row.pose.get('y', 0):.2f},{row.pose.get('yaw', 0):.2f}" if row.pose else ""
         battery = f"{row.battery * 100:.0f}%" if row.battery is not None else ""
-        state = f"[{colour}]{row.state}[/{colour}]" + (" (live overrides)" if row.overrides else "")
+        state = Text.assemble((row.state, colour), " (live overrides)" if row.overrides else "")
         cells = [
             row.name,
             row.agent,
