@@ -35,6 +35,7 @@ def down(
     from fleet.client import down as stop_fleet
     from fleet.client import local_daemon
     from fleet.errors import ControlError, FleetError
+    from fleet.plan import known_fleets
 
     if spec is not None:
         from fleet.spec import load_spec
@@ -46,8 +47,7 @@ def down(
     try:
         with client(connect, zenoh_config) as control:
             if all_:
-                statuses, registries = control.status(None)
-                fleets = sorted({s.fleet for s in statuses if s.fleet} | {r.fleet for r in registries})
+                fleets = known_fleets(*control.status(None))
             else:
                 assert fleet is not None  # refused above unless --all
                 fleets = [fleet]

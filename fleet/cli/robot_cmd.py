@@ -16,7 +16,8 @@ def register(app: typer.Typer) -> None:
     app.command("logs")(logs)
     param_app = typer.Typer(help="Read or change a node's ROS parameter live, through its agent.", no_args_is_help=True)
     param_app.command("get")(param_get)
-    param_app.command("set")(param_set)
+    # A negative value (`... max_speed -0.5`) is the value, as with `ros2 param set`, not an option.
+    param_app.command("set", context_settings={"ignore_unknown_options": True})(param_set)
     app.add_typer(param_app, name="param")
 
 

@@ -26,6 +26,7 @@ def status(
     (sim time, real-time factor, contacts) of every fleet."""
     from fleet.cli.output import console, print_json
     from fleet.cli.status_view import print_view, view_tables
+    from fleet.client import fleet_status
     from fleet.plan import build_view
 
     with client(connect, zenoh_config) as control:
@@ -37,13 +38,13 @@ def status(
             with Live(console=out, auto_refresh=False) as live:
                 try:
                     while True:
-                        view = build_view(*control.status(fleet), time.time())
+                        view = build_view(*fleet_status(control, fleet), time.time())
                         live.update(Group(*view_tables(view)), refresh=True)
                         time.sleep(1.0)
                 except KeyboardInterrupt:
                     pass
             return
-        view = build_view(*control.status(fleet), time.time())
+        view = build_view(*fleet_status(control, fleet), time.time())
     if json:
         print_json(view.to_json())
     else:

@@ -6,6 +6,6 @@ The plan (what to send) comes from fleet.plan, the messages from fleet.wire.
 
 from fleet.client.control_client import ControlClient, connect
 from fleet.client.deployment import Outcome, deploy, down
-from fleet.client.robots import locate_robot, tool_environment
+from fleet.client.robots import fleet_status, locate_robot, tool_environment
 
-__all__ = ["ControlClient", "Outcome", "connect", "deploy", "down", "locate_robot", "tool_environment"]
+__all__ = ["ControlClient", "Outcome", "connect", "deploy", "down", "fleet_status", "locate_robot", "tool_environment"]

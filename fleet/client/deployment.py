@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
+from fleet.client.robots import fleet_status
 from fleet.errors import ControlError
 from fleet.plan import (
     FleetView,
@@ -176,8 +177,8 @@ def down(
     client: ControlClient, fleet: str, wait: bool = True, timeout: float = 30.0
 ) -> dict[str, p.ApplyReply | ControlError]:
     """Send every agent serving `fleet` an empty desired state (left with the router too, for
-    agents away now) and forget the plan."""
-    statuses, registries = client.status(fleet)
+    agents away now) and forget the plan.  ControlError, nothing sent, for a fleet unknown here."""
+    statuses, registries = fleet_status(client, fleet)
     view = build_view(statuses, registries, time.time())
     generation = new_generation()
     serving = sorted(view.agents_serving(fleet))

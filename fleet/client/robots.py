@@ -1,4 +1,4 @@
-"""Finding a fleet's robots and its ROS graph from one status query."""
+"""Finding a fleet, its robots and its ROS graph from one status query."""
 
 from __future__ import annotations
 
@@ -6,7 +6,19 @@ import time
 
 from fleet.client.control_client import ControlClient
 from fleet.errors import ControlError, FleetError
-from fleet.plan.view import FleetView, build_view
+from fleet.plan.view import FleetView, build_view, known_fleets
+from fleet.wire import protocol as p
+
+
+def fleet_status(client: ControlClient, fleet: str | None) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
+    """client.status(fleet); ControlError when `fleet` names a fleet no agent serves and the router
+    has no record of: a mistyped name would otherwise show as an empty fleet, all running."""
+    statuses, registries = client.status(fleet)
+    if fleet is None or fleet in known_fleets(statuses, registries):
+        return statuses, registries
+    known = known_fleets(*client.status(None))
+    listed = f"fleets: {', '.join(known)}" if known else "none is deployed"
+    raise ControlError(f"no fleet named {fleet!r} here ({listed})")
 
 
 def locate_robot(client: ControlClient, robot: str, fleet: str | None) -> tuple[str, str]:

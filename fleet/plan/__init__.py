@@ -10,7 +10,7 @@ from fleet.plan.desired import (
     with_planned_agents,
 )
 from fleet.plan.diff import DiffRow, diff
-from fleet.plan.view import WORLD_SILENT, FleetView, RobotRow, build_view, locate_world
+from fleet.plan.view import WORLD_SILENT, FleetView, RobotRow, build_view, known_fleets, locate_world
 
 __all__ = [
     "WORLD_SILENT",
@@ -21,6 +21,7 @@ __all__ = [
     "diff",
     "discovery_for",
     "held_generation",
+    "known_fleets",
     "locate_world",
     "new_generation",
     "plan_record",

@@ -137,6 +137,14 @@ def _row_json(row: AgentRow | RobotRow | WorldRow) -> dict[str, Any]:
     return {column.name: getattr(row, column.name) for column in fields(row)}
 
 
+def known_fleets(statuses: list[p.StatusReply], registries: list[p.RegistryReply]) -> list[str]:
+    """Fleets an agent serves or the router's registry holds (a plan, or agents seen serving it).
+    The router answers a registry query for any name, and keeps only the history of a fleet that
+    was taken down: neither counts."""
+    served = {status.fleet for status in statuses if status.fleet}
+    return sorted(served | {r.fleet for r in registries if r.plan or r.agents})
+
+
 def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply], now: float) -> FleetView:
     agents: dict[str, AgentRow] = {}
     robots: dict[tuple[str, str], RobotRow] = {}

@@ -79,6 +79,20 @@ def test_cli_redeploy_says_nothing_changed_and_status_exits_zero(cluster):
     assert data["all_running"] is True
 
 
+def test_a_fleet_name_not_known_here_is_an_error_and_changes_nothing(cluster):
+    cluster.deploy(cluster.spec())
+    before = {row.name: row.pids for row in cluster.view("tiny").robots}
+    for command in (["status"], ["status", "--json"], ["down"]):
+        done = cluster.cli(*command, "--fleet", "tinny", "--connect", cluster.endpoint)
+        assert done.returncode == 1 and done.stdout == "", done.stdout + done.stderr
+        assert re.fullmatch(r"fleet: error: no fleet named 'tinny' here \(fleets: .*\btiny\b.*\)\n", done.stderr)
+    # The refused down wrote nothing: the router holds no record of the name, tiny runs on as it was.
+    with cluster.client() as client:
+        registries = client.status("tinny")[1]
+    assert [(r.plan, r.agents, r.history) for r in registries if r.fleet == "tinny"] == [(None, {}, [])]
+    assert {row.name: row.pids for row in cluster.view("tiny").robots} == before
+
+
 def test_changing_one_robot_restarts_only_it(cluster):
     spec = cluster.spec()
     cluster.deploy(spec)

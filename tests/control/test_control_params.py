@@ -33,6 +33,10 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
 
     refused = param(cluster, "set", "robot1", "controller", "max_speed", "99")
     assert refused.returncode != 0 and "refused" in refused.stderr, refused.stdout + refused.stderr
+    # A negative value is the value (as with `ros2 param set`), not an unknown option: the node judges it.
+    negative = param(cluster, "set", "robot1", "controller", "max_speed", "-0.5")
+    assert negative.returncode == 1, negative.stdout + negative.stderr
+    assert "refused max_speed=-0.5" in negative.stderr and "out of range" in negative.stderr, negative.stderr
     accepted = param(cluster, "set", "robot1", "controller", "max_speed", "1")  # an int for a double: coerced
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr
     assert json.loads(param(cluster, "get", "robot1", "controller", "max_speed").stdout) == 1.0
