@@ -10,6 +10,7 @@ from typing import Literal
 import typer
 
 from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+from fleet.wire.limits import MAX_LOG_LINES
 
 
 def register(app: typer.Typer) -> None:
@@ -25,7 +26,7 @@ def logs(
     robot: str = typer.Argument(..., help="Robot name (or `world`)."),
     node: str | None = typer.Argument(None, help="Node name (default: every node of the robot)."),
     follow: bool = typer.Option(False, "--follow", "-f", help="Keep printing new lines until Ctrl-C."),
-    tail: int = typer.Option(50, "--tail", "-n", help="Lines to show first (per node)."),
+    tail: int = typer.Option(50, "--tail", "-n", min=0, max=MAX_LOG_LINES, help="Lines to show first (per node)."),
     fleet: str | None = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it."),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
@@ -57,25 +58,32 @@ def logs(
 def _parse_value(text: str):
     """VALUE as YAML, like `ros2 param set`: 0.8, true, [1.0, 2.0], hello."""
     from fleet.errors import FleetError, Location
+    from fleet.spec.params import value_problem
     from fleet.spec.yaml_source import parse_scalar
 
     try:
-        return parse_scalar(text)
+        value = parse_scalar(text)
     except ValueError as error:
         raise FleetError(f"cannot parse value: {error}", Location(f"VALUE {text}")) from None
+    if problem := value_problem(value):
+        raise FleetError(problem, Location(f"VALUE {text}"))
+    return value
 
 
 def _param(robot: str, node: str, name: str, op: Literal["get", "set"], value, fleet, connect, zenoh_config):
+    from pydantic import ValidationError
+
     from fleet.client import locate_robot
-    from fleet.errors import FleetError
+    from fleet.errors import COMMAND_LINE, FleetError, Location
     from fleet.wire import protocol as p
 
     with client(connect, zenoh_config) as control:
         fleet_name, agent_name = locate_robot(control, robot, fleet)
         try:
             request = p.ParamRequest(fleet=fleet_name, robot=robot, node=node, name=name, op=op, value=value)
-        except Exception as error:
-            raise FleetError(f"invalid parameter request: {error}") from None
+        except ValidationError as error:
+            problem = p.short_validation_error(error)
+            raise FleetError(f"invalid parameter request: {problem}", Location(COMMAND_LINE)) from None
         return control.param(agent_name, request)
 
 

@@ -522,7 +522,7 @@ def world_document(data: dict[str, Any]) -> WorldDocument:
     try:
         return WorldDocument.model_validate(data)
     except ValidationError as error:
-        raise ValueError(_short_validation_error(error)) from None
+        raise ValueError(short_validation_error(error)) from None
 
 
 def world_summary(document: dict[str, Any]) -> WorldSummary:
@@ -530,7 +530,7 @@ def world_summary(document: dict[str, Any]) -> WorldSummary:
     try:
         summary = WorldSummary.model_validate(document)
     except ValidationError as error:
-        raise ValueError(_short_validation_error(error)) from None
+        raise ValueError(short_validation_error(error)) from None
     summary.contacts.last = summary.contacts.last[-STATUS_CONTACTS:]
     return summary
 
@@ -734,10 +734,11 @@ def validate(data: dict[str, Any], model: type[MessageT]) -> MessageT:
     try:
         return model.model_validate(data)
     except ValidationError as error:
-        raise ProtocolError(_short_validation_error(error), "invalid") from None
+        raise ProtocolError(short_validation_error(error), "invalid") from None
 
 
-def _short_validation_error(error: ValidationError) -> str:
+def short_validation_error(error: ValidationError) -> str:
+    """The first few problems of `error`, one line: `name: String should match pattern ...`."""
     problems = []
     for item in error.errors()[:5]:
         where = ".".join(str(part) for part in item["loc"])

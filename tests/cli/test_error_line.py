@@ -51,6 +51,12 @@ def test_an_error_without_a_file_is_one_in_the_command_line():
         (["deploy", "x.yaml", "--timeout", "soon"], "Invalid value for '--timeout'"),
         (["nosuchcommand"], "No such command 'nosuchcommand'"),
         (["dashboard", "--port", "99999"], "Invalid value for '--port'"),  # before connecting anywhere
+        (["deploy", str(FLEETS / "two_robots.yaml"), "--timeout", "-1"], "Invalid value for '--timeout'"),
+        (["logs", "robot1", "--tail", "-3"], "Invalid value for '--tail'"),
+        (["logs", "robot1", "--tail", "20000"], "less than or equal to 10000"),  # what an agent answers
+        # Values ROS cannot hold are refused before anything is asked of the robot's node.
+        (["param", "set", "robot1", "controller", "max_speed", "{a: 1}"], "VALUE {a: 1}: dict is not a ROS parameter"),
+        (["param", "set", "robot1", "controller", "max_speed", "[1, 2.5]"], "VALUE [1, 2.5]: mixed-type list"),
     ],
 )
 def test_usage_errors_are_one_line(capsys, args, expected):

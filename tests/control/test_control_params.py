@@ -49,6 +49,9 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
 
     unknown = param(cluster, "get", "robot1", "controller", "no_such_parameter")
     assert unknown.returncode != 0 and "no parameter" in unknown.stderr
+    malformed = param(cluster, "get", "robot1", "controller", "max speed")
+    assert malformed.returncode == 2 and malformed.stderr.count("\n") == 1, malformed.stderr
+    assert malformed.stderr.startswith("fleet: error: <command line>: invalid parameter request: name: ")
 
     cluster.kill("agent-hostA", signal.SIGKILL)
     cluster.start_agent("hostA")
