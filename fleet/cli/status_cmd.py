@@ -30,6 +30,7 @@ def status(
     from fleet.plan import build_view
 
     with client(connect, zenoh_config) as control:
+        view = build_view(*fleet_status(control, fleet), time.time())  # a fleet unknown here ends it now
         if watch and not json:
             from rich.console import Group
             from rich.live import Live
@@ -37,14 +38,13 @@ def status(
             out = console()
             with Live(console=out, auto_refresh=False) as live:
                 try:
-                    while True:
-                        view = build_view(*fleet_status(control, fleet), time.time())
+                    while True:  # on while the fleet goes down, or the router restarts: it shows that
                         live.update(Group(*view_tables(view)), refresh=True)
                         time.sleep(1.0)
+                        view = build_view(*control.status(fleet), time.time())
                 except KeyboardInterrupt:
                     pass
             return
-        view = build_view(*fleet_status(control, fleet), time.time())
     if json:
         print_json(view.to_json())
     else:

@@ -82,7 +82,7 @@ def test_cli_redeploy_says_nothing_changed_and_status_exits_zero(cluster):
 def test_a_fleet_name_not_known_here_is_an_error_and_changes_nothing(cluster):
     cluster.deploy(cluster.spec())
     before = {row.name: row.pids for row in cluster.view("tiny").robots}
-    for command in (["status"], ["status", "--json"], ["down"]):
+    for command in (["status"], ["status", "--json"], ["status", "--watch"], ["down"]):
         done = cluster.cli(*command, "--fleet", "tinny", "--connect", cluster.endpoint)
         assert done.returncode == 1 and done.stdout == "", done.stdout + done.stderr
         assert re.fullmatch(r"fleet: error: no fleet named 'tinny' here \(fleets: .*\btiny\b.*\)\n", done.stderr)
