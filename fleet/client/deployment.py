@@ -124,7 +124,10 @@ def deploy(
             on_progress(outcome.view.robots)
         if not wait or outcome.superseded_by is not None:
             break
-        if _settled(outcome.view, wanted, outcome.generation) or _hopeless(outcome.view, wanted, outcome.generation):
+        judged = outcome.already_applied or _plan_taken(registries, expansion.fleet, outcome.generation)
+        if judged and (
+            _settled(outcome.view, wanted, outcome.generation) or _hopeless(outcome.view, wanted, outcome.generation)
+        ):
             break
         if time.monotonic() >= deadline:
             outcome.timed_out = True
@@ -150,6 +153,13 @@ def _send(
     for reply in outcome.replies.values():
         if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
             outcome.superseded_by = max(outcome.superseded_by or 0, reply.current_generation)
+
+
+def _plan_taken(registries: list[p.RegistryReply], fleet: str, generation: int) -> bool:
+    """The router's registry has taken this deploy's plan (or a later one).  It takes the plan (a
+    put) and answers status (a query) on different threads, so the first status after a deploy
+    can still carry the last plan, whose robots removed since would show as pending."""
+    return any(r.fleet == fleet and any(plan.generation >= generation for plan in r.history) for r in registries)
 
 
 def _settled(view: FleetView, wanted: set[str], generation: int) -> bool:

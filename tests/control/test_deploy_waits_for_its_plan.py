@@ -1,0 +1,88 @@
+"""A deploy judges its robots only once the router holds its plan.
+
+The router takes a deploy's plan (a put) and answers status (a query) on different threads, so
+the first status after a deploy can still carry the last plan: a robot the deploy removed then
+shows as `pending` (the old plan places it, no agent runs it), and the deploy ended not ok though
+everything went as asked (test_removing_a_robot_stops_it in test_control_cluster.py, now and then
+under two suites at once).  Here a client whose registry takes the plan one status late plays the
+router's lag; the expansion and the deploy are fleet's own code.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import yaml
+
+from fleet.client import deploy
+from fleet.expand import expand_fleet
+from fleet.spec import load_spec
+from fleet.wire import protocol as p
+
+DATA = Path(__file__).parent / "data"
+
+
+class LaggingRouter:
+    """One agent, hostA, that applies at once; a registry that takes each plan one status late."""
+
+    def __init__(self, robots: list[str], generation: int):
+        self.agents = {"hostA": (generation, sorted(robots))}  # agent -> (generation, robots it runs)
+        placed = dict.fromkeys(robots, "hostA")
+        self.plans = [p.PlanRecord(fleet="tiny", generation=generation, robots=placed, deployed_at=0.0)]
+        self.arriving: list[p.PlanRecord] = []
+
+    def status(self, fleet=None, timeout=3.0):
+        statuses = [
+            p.StatusReply(
+                agent=p.AgentInfo(name=agent, hostname=agent, cores=2, pid=1, version="0", started_at=0.0),
+                fleet="tiny",
+                generation=generation,
+                reconciled_generation=generation,
+                domain_id=0,
+                robots=[
+                    p.RobotState(name=name, state="running", running=1, total=1, generation=generation)
+                    for name in names
+                ],
+                time=time.time(),
+            )
+            for agent, (generation, names) in self.agents.items()
+        ]
+        registry = p.RegistryReply(fleet="tiny", plan=self.plans[-1], history=list(self.plans))
+        self.plans += self.arriving  # taken after this answer
+        self.arriving = []
+        return statuses, [registry]
+
+    def send_applies(self, requests):
+        replies = {}
+        for request in requests:
+            names = sorted(bundle.name for bundle in request.bundles)
+            self.agents[request.agent] = (request.generation, names)
+            replies[request.agent] = p.ApplyReply(
+                fleet=request.fleet,
+                agent=request.agent,
+                generation=request.generation,
+                accepted=True,
+                current_generation=request.generation,
+            )
+        return replies
+
+    def put_desired(self, requests):
+        pass
+
+    def put_plan(self, plan):
+        self.arriving.append(plan)
+
+
+def test_a_removed_robot_is_not_left_pending_by_the_last_plan(tmp_path):
+    spec = yaml.safe_load((DATA / "tiny.yaml").read_text())
+    spec["templates"] = str(DATA / "templates")
+    spec["robots"] = [{"name": "robot1"}]  # robot3 removed
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    router = LaggingRouter(["robot1", "robot3"], generation=1)
+
+    outcome = deploy(router, expand_fleet(load_spec(path), []), timeout=5.0)  # type: ignore[arg-type]
+
+    assert outcome.ok and not outcome.timed_out, outcome.view and outcome.view.robots
+    assert outcome.view is not None and [row.name for row in outcome.view.robots] == ["robot1"]
