@@ -40,6 +40,7 @@ from fleet import __version__
 from fleet.files import write_atomic
 from fleet.rules import hosts_dir, services_dir
 from fleet.runtime.processes import stop_all
+from fleet.server.logs import robot_logs
 from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
 from fleet.server.units import UNIT_MARKER, Unit
@@ -640,17 +641,10 @@ class Agent:
     def _handle_logs(self, query):
         request = p.decode(_payload(query), p.LogsRequest)
         unit = self._unit(request.fleet, request.robot)
-        nodes = [request.node] if request.node else unit.node_names()
         if request.node and request.node not in unit.node_names():
             raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
-        lines: list[p.LogLine] = []
-        cursor: dict[str, int] = {}
-        for node in nodes:
-            path = unit.log_file(node)
-            start = (request.cursor or {}).get(node)
-            text_lines, cursor[node] = read_log(path, request.tail, start)
-            lines.extend(p.LogLine(node=node, text=line) for line in text_lines)
-        yield p.logs_key(request.fleet, self.name), p.encode(p.LogsReply(lines=lines, cursor=cursor))
+        nodes = [request.node] if request.node else unit.node_names()
+        yield p.logs_key(request.fleet, self.name), p.encode(robot_logs(nodes, unit.log_file, request))
 
     def _unit(self, fleet: str, robot: str) -> Unit:
         with self._lock:
@@ -690,25 +684,6 @@ class Agent:
 def _payload(query) -> bytes | None:
     payload = query.payload
     return None if payload is None else payload.to_bytes()
-
-
-def read_log(path: Path | None, tail: int, start: int | None) -> tuple[list[str], int]:
-    """Lines of a log file: the last `tail` ones (start None) or those after byte offset `start`."""
-    if path is None or not path.exists():
-        return [], 0
-    size = path.stat().st_size
-    with open(path, "rb") as stream:
-        if start is None or start > size:  # first read, or the file was rotated
-            stream.seek(max(0, size - 256 * max(tail, 1)))
-            data = stream.read()
-            lines = data.decode("utf-8", "replace").splitlines()
-            if stream.tell() > len(data) and lines:  # first line may be cut
-                lines = lines[1:]
-            return lines[-tail:] if tail else [], size
-        stream.seek(start)
-        data = stream.read(size - start)
-    complete = data.rfind(b"\n") + 1  # only whole lines; the rest comes next time
-    return data[:complete].decode("utf-8", "replace").splitlines(), start + complete
 
 
 def call_parameter_service(fqn: str, request: p.ParamRequest, env: dict[str, str]) -> p.ParamReply:

@@ -7,7 +7,6 @@ import json
 import pytest
 import yaml
 
-from fleet.server.agent import read_log
 from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
 from fleet.server.units import with_overrides
@@ -200,21 +199,6 @@ def test_desired_state_is_persisted_atomically_and_restored(tmp_path):
     assert not [path for path in store.desired_dir.iterdir() if path.name.startswith(".")]  # no temporaries
     with pytest.raises(RuntimeError, match="belongs to agent"):
         AgentStore(tmp_path / "state", "hostB").claim()
-
-
-def test_read_log_tails_then_follows_whole_lines(tmp_path):
-    path = tmp_path / "node.log"
-    path.write_text("".join(f"line {i}\n" for i in range(100)))
-    lines, offset = read_log(path, 3, None)
-    assert lines == ["line 97", "line 98", "line 99"]
-    with open(path, "a") as stream:
-        stream.write("line 100\nhalf")
-    lines, offset = read_log(path, 3, offset)
-    assert lines == ["line 100"]
-    with open(path, "a") as stream:
-        stream.write(" done\n")
-    assert read_log(path, 3, offset)[0] == ["half done"]
-    assert read_log(tmp_path / "missing.log", 3, None) == ([], 0)
 
 
 @pytest.mark.parametrize("name", ["hostA", "lab-pc.3", "_x", "a" * 63, "a" * 64, "-x", ".x", "a/b", "a*", "", "é"])

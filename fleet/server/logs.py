@@ -1,0 +1,49 @@
+"""A robot's log lines as its agent serves them to `fleet logs` and the dashboard."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from fleet.wire import protocol as p
+
+
+def robot_logs(nodes: list[str], log_file: Callable[[str], Path | None], request: p.LogsRequest) -> p.LogsReply:
+    """The lines of `nodes`' logs, each log file read once.
+
+    Nodes that share a process (`isolation: robot` composes a robot's nodes into one) share its
+    log file: its lines are sent once, labelled with every node it hosts (`controller+battery`),
+    not once per node.  The cursor keeps an offset per node, so a client following the log sends
+    back what it got, whatever the grouping.
+    """
+    groups: dict[Path | None, list[str]] = {}
+    for node in nodes:
+        groups.setdefault(log_file(node), []).append(node)
+    lines: list[p.LogLine] = []
+    cursor: dict[str, int] = {}
+    for path, members in groups.items():
+        start = (request.cursor or {}).get(members[0])
+        text_lines, offset = read_log(path, request.tail, start)
+        cursor.update(dict.fromkeys(members, offset))
+        label = "+".join(members)
+        lines.extend(p.LogLine(node=label, text=text) for text in text_lines)
+    return p.LogsReply(lines=lines, cursor=cursor)
+
+
+def read_log(path: Path | None, tail: int, start: int | None) -> tuple[list[str], int]:
+    """Lines of a log file: the last `tail` ones (start None) or those after byte offset `start`."""
+    if path is None or not path.exists():
+        return [], 0
+    size = path.stat().st_size
+    with open(path, "rb") as stream:
+        if start is None or start > size:  # first read, or the file was rotated
+            stream.seek(max(0, size - 256 * max(tail, 1)))
+            data = stream.read()
+            lines = data.decode("utf-8", "replace").splitlines()
+            if stream.tell() > len(data) and lines:  # first line may be cut
+                lines = lines[1:]
+            return lines[-tail:] if tail else [], size
+        stream.seek(start)
+        data = stream.read(size - start)
+    complete = data.rfind(b"\n") + 1  # only whole lines; the rest comes next time
+    return data[:complete].decode("utf-8", "replace").splitlines(), start + complete
