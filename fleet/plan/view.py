@@ -327,8 +327,7 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSumma
             continue
         # Just started and never heard by the world: still coming up.  Once its data has flowed
         # (the world has had a command from it), a stop is a fault whatever its age.
-        heard = summary is not None and getattr(summary.robots.get(row.name), "cmd_age", None) is not None
-        if _young(row) and not heard:
+        if _young(row) and not (summary is not None and _heard_since_start(row, summary)):
             row.state, row.reason = "starting", f"waiting for data: {problem}"
         else:
             row.state, row.reason = "degraded", problem
@@ -343,9 +342,27 @@ def _robot_flow_problem(row: RobotRow, summary: p.WorldSummary) -> str | None:
         return "no cmd_vel from it has reached the world yet"
     if robot.cmd_age > NO_COMMANDS:
         return f"no cmd_vel from it has reached the world for {robot.cmd_age:.0f} s"
+    if not _heard_since_start(row, summary):
+        return "no cmd_vel from its new nodes has reached the world yet"
     if robot.odom_subscribers == 0:
         return "none of its nodes receives the world's odom"
     return None
+
+
+def _heard_since_start(row: RobotRow, summary: p.WorldSummary) -> bool:
+    """Whether the world's last command from this robot came from its nodes running now.
+
+    A restarted robot's world still remembers the commands of its previous processes for a few
+    seconds; those say nothing about the new ones.  Both ages are durations measured when the
+    status was asked (on their own computers, so no clocks are compared).  The oldest node counts:
+    one node respawning alone leaves the robot's data flowing from the others."""
+    robot = summary.robots.get(row.name)
+    if robot is None or robot.cmd_age is None:
+        return False
+    uptimes = [u for u in (node.get("uptime") for node in row.nodes) if isinstance(u, (int, float)) and u > 0]
+    if not uptimes:
+        return True  # no start time to compare with (an agent that does not report uptimes)
+    return robot.cmd_age + (summary.age or 0.0) < max(uptimes)
 
 
 def _young(row: RobotRow) -> bool:

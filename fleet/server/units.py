@@ -171,14 +171,23 @@ class Unit:
         )
 
     def world_file(self) -> dict[str, Any] | None:
-        """The world's status file as written (None: not the world, or nothing readable yet).
+        """The world's status file as its running process wrote it (None: not the world, or
+        nothing readable from this process yet).
 
         The world writes it atomically, so a read never sees half of one."""
-        from fleet.world.status import read_status
+        from fleet.world.status import read_status, written_since
 
         if self.bundle.kind != "world":
             return None
-        return read_status(self.directory / WORLD_STATUS_FILE)
+        data = read_status(self.directory / WORLD_STATUS_FILE)
+        if data is None or not written_since(data, self._started_at()):
+            return None
+        return data
+
+    def _started_at(self) -> float | None:
+        """Wall time the unit's oldest running process started (None: none runs)."""
+        uptimes = [node.uptime for node in self.node_states() if node.state == "running" and node.uptime]
+        return time.time() - max(uptimes) if uptimes else None
 
     def world_summary(self) -> WorldSummary | None:
         """What a status reply carries of the world: no trails, no scan hits, the last few contacts.

@@ -95,6 +95,16 @@ def read_status(path: str | Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
+def written_since(status: dict[str, Any], started_at: float | None) -> bool:
+    """Whether the world process started at `started_at` (wall time, None: none running) wrote
+    this document.  The file outlives its writer (a restarted world resumes from it), so until a
+    new world writes its first status, the file still tells of the previous one."""
+    wall_time = status.get("wall_time")
+    if started_at is None or isinstance(wall_time, bool) or not isinstance(wall_time, int | float):
+        return True  # nothing to tell them apart: a stopped world's last word is still its state
+    return wall_time >= started_at
+
+
 def last_sim_time(status: dict[str, Any] | None) -> float:
     """The sim time a status document reports (0 when missing or not a finite time >= 0)."""
     value = (status or {}).get("sim_time")

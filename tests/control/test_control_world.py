@@ -135,6 +135,36 @@ def test_the_world_written_by_the_world_process_validates(tmp_path):
     assert p.world_summary(status).robots["robot2"].velocity is not None
 
 
+def test_a_restarted_world_is_not_reported_from_its_predecessors_file(tmp_path):
+    """The status file outlives the world process that wrote it (the next one resumes from it):
+    until the new process writes, the agent reports no world rather than the dead one's robots."""
+    from fleet.rules import WORLD_STATUS_FILE
+    from fleet.server.units import Unit
+    from fleet.wire.protocol import NodeState
+
+    bundle = p.BundleMessage(
+        name="world", kind="world", entry="w.launch.yaml", files={"w.launch.yaml": ""}, digest="ab" * 8
+    )
+    unit = Unit("bump", bundle, tmp_path, env={})
+    uptime = 2.0  # the world's current process started 2 s ago
+
+    def node_states():  # what the unit's launch session reports (this test runs no process)
+        return [NodeState(name="world", state="running", pid=1, uptime=uptime)]
+
+    unit.node_states = node_states  # type: ignore[method-assign]
+    path = tmp_path / WORLD_STATUS_FILE
+    path.write_text(json.dumps({**world_file(), "wall_time": time.time() - 2.5, "stopped": True}))
+    assert unit.world_file() is None and unit.world_summary() is None  # the previous process wrote it
+
+    path.write_text(json.dumps({**world_file(), "wall_time": time.time() - 0.5}))
+    assert unit.world_file() is not None
+    summary = unit.world_summary()
+    assert summary is not None and summary.age is not None and summary.age < 2.0
+
+    uptime = 0.0  # no process runs: the last status is the world's last word (its age tells)
+    assert unit.world_file() is not None
+
+
 def test_view_shows_worlds_and_robot_poses():
     world = p.world_summary(world_file())
     robots_agent = agent_status(agent="hostA", robots=("robot1", "robot2"))

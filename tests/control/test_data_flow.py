@@ -75,11 +75,32 @@ def test_a_robot_just_started_without_data_yet_is_starting_not_degraded():
 
 
 def test_a_robot_whose_data_flowed_is_degraded_when_it_stops_even_just_after_start():
+    # Its nodes started 4 s before the world's last report, which had heard them: young, but heard.
+    assert WORLD_SILENT + 6 < STARTUP_GRACE
     got = rows(
         status("sim", [unit("world")], world(age=WORLD_SILENT + 2, r1=FLOWING)),
-        status("rack", [unit("r1", uptime=1.0)]),
+        status("rack", [unit("r1", uptime=WORLD_SILENT + 6)]),
     )
     assert got["r1"][0] == "degraded"
+
+
+def restarted(name: str, *uptimes: float) -> p.RobotState:
+    nodes = [p.NodeState(name=f"n{i}", state="running", pid=10 + i, uptime=u) for i, u in enumerate(uptimes)]
+    return p.RobotState(name=name, kind="robot", state="running", nodes=nodes, running=len(nodes), total=len(nodes))
+
+
+def test_a_restarted_robot_is_not_running_on_its_old_processes_commands():
+    # The world heard r1 0.1 s before its report, written 1.5 s ago; r1's nodes started 1 s ago.
+    got = rows(status("sim", [unit("world")], world(age=1.5, r1=FLOWING)), status("rack", [restarted("r1", 1.0, 0.9)]))
+    assert got["r1"] == ("starting", "waiting for data: no cmd_vel from its new nodes has reached the world yet")
+    # Once the world reports a command received after they started, it runs.
+    got = rows(status("sim", [unit("world")], world(age=0.2, r1=FLOWING)), status("rack", [restarted("r1", 1.0, 0.9)]))
+    assert got["r1"] == ("running", "")
+
+
+def test_one_respawned_node_leaves_a_robot_running_on_the_others_commands():
+    got = rows(status("sim", [unit("world")], world(age=0.4, r1=FLOWING)), status("rack", [restarted("r1", OLD, 0.2)]))
+    assert got["r1"] == ("running", "")
 
 
 def test_a_robot_the_world_did_not_spawn_says_why():

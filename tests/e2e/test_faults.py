@@ -122,6 +122,21 @@ def test_killed_world_restarts_with_robots_at_their_last_poses(fleet):
     fleet.assert_no_leaks()
 
 
+def test_a_deploy_restarting_a_robot_is_up_only_once_its_new_nodes_reach_the_world(fleet):
+    """For a few seconds the world remembers the last command of the robot's previous processes:
+    that must not pass for the new ones' data (the deploy had said `fleet up` on it)."""
+    before = fleet.pids("robot1")
+    fleet.deploy(sets=["robot1.controller.max_speed=0.35"])  # restarts robot1; fails the test unless ok
+    world = fleet.world()  # read once the deploy has said every robot runs
+    after = fleet.pids("robot1")
+    assert world is not None and after and after.isdisjoint(before)
+    started = min(psutil.Process(pid).create_time() for pid in after)
+    cmd_age = world["robots"]["robot1"]["cmd_age"]
+    assert cmd_age is not None, "the world has no command from robot1"
+    heard = world["wall_time"] - cmd_age
+    assert heard > started, f"the world last heard robot1 {started - heard:.2f} s before its new nodes started"
+
+
 def test_router_restart_agents_reconnect(fleet):
     before = node_pids(fleet.status())
     fleet.kill_router(signal.SIGKILL)
