@@ -1,13 +1,14 @@
 """Every example fleet in fleets/ comes up and every one of its robots moves (its nodes get the
 world's /clock and odometry, and the world gets their commands), on one agent process per
-agent named in the spec."""
+agent named in the spec; robots that patrol go round their routes, and none drives into a wall
+or an obstacle (a route through a wall leaves its robot stuck there, "running" all along)."""
 
 from __future__ import annotations
 
 import pytest
 
 from fleet.testing import running_fleet
-from tests.e2e.e2e_helpers import FLEETS
+from tests.e2e.e2e_helpers import FLEETS, RouteProgress
 
 pytestmark = pytest.mark.integration
 
@@ -34,3 +35,17 @@ def test_every_robot_of_the_example_moves(spec, tmp_path):
             explain=lambda: f"not moved: {', '.join(still())}",
         )
         assert fleet.status().all_running
+
+        patrolling = [r for r in spawns if fleet.expansion.robot(r).parameters.effective()["controller"]["loop"]]
+        routes = {robot: RouteProgress(fleet, robot) for robot in patrolling}
+
+        def stuck():
+            return sorted(robot for robot, route in routes.items() if route.update() < 2)
+
+        fleet.wait_for(
+            lambda: not stuck(),
+            sim_timeout=40,
+            what="every patrolling robot to reach two waypoints in a row",
+            explain=lambda: f"not there: {', '.join(stuck())}",
+        )
+        assert not [c for c in fleet.contacts() if c["kind"] == "robot-obstacle"]
