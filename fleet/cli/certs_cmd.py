@@ -23,9 +23,11 @@ def certs(
     days: int = typer.Option(825, "--days", min=1, max=3650, help="Validity of new certificates."),
     json: bool = typer.Option(False, "--json", help="Print machine-readable JSON instead of a table."),
 ) -> None:
-    """Create (or complete) the fleet's certificate authority in OUT, a certificate for the router,
-    each agent of SPEC and each operator, and the Zenoh configs that use them: mutual TLS, and
-    access rules letting each agent reach only its own keys.  Existing certificates are kept."""
+    """Create the fleet's certificates and Zenoh configs in OUT: mutual TLS, per-agent access rules.
+
+    Creates (or completes) the fleet's certificate authority, a certificate for the router, each
+    agent of SPEC and each operator, and the Zenoh configs that use them, with access rules
+    letting each agent reach only its own keys.  Existing certificates are kept."""
     from fleet.cli.output import console, print_json
     from fleet.cli.render_cmd import load_and_expand
     from fleet.wire import certificates as c

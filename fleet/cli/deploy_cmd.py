@@ -151,7 +151,7 @@ def _print_outcome(outcome, out) -> None:
 
     for agent_name, reply in sorted(outcome.replies.items()):
         if not isinstance(reply, p.ApplyReply):
-            out.print(labelled(f"agent {agent_name}: unreachable", "red", f"({reply}); its robots stay pending"))
+            out.print(labelled(f"{reply}:", "red", "its robots stay pending"))  # "agent NAME is unreachable (...)"
         elif not reply.accepted:
             out.print(labelled(f"agent {agent_name} refused generation {reply.generation}:", "red", reply.reason))
         elif not reply.changes.nothing:

@@ -58,8 +58,9 @@ def run(
         False, "--print", "-p", help="Print the launch description (as ros2 launch -p), start nothing."
     ),
 ) -> None:
-    """Run a launch file in the foreground, like `ros2 launch FILE name:=value...`; Ctrl-C stops
-    every node cleanly."""
+    """Run a launch file in the foreground, like `ros2 launch FILE name:=value...`.
+
+    Ctrl-C stops every node cleanly."""
     import signal
     import threading
 

@@ -22,8 +22,10 @@ def status(
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
-    """Agents (online/offline), robots (state, nodes, restarts, pose, battery) and worlds
-    (sim time, real-time factor, contacts) of every fleet."""
+    """Agents, robots and worlds of every fleet, and whether their data flows.
+
+    Agents (online/offline), robots (state, nodes, restarts, pose, battery) and worlds (sim time,
+    real-time factor, contacts).  Without --watch, exits 1 unless every robot runs."""
     from fleet.cli.output import console, print_json
     from fleet.cli.status_view import print_view, view_tables
     from fleet.client import fleet_status
@@ -59,8 +61,9 @@ def ros_env(
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
-    """Print the environment that lets ROS tools (ros2 topic, rviz2) see a fleet's whole graph:
-    `eval "$(fleet ros-env)"`."""
+    """Print the environment that lets ROS tools see a fleet's whole graph.
+
+    For ros2 topic, ros2 node, rviz2: `eval "$(fleet ros-env)"`."""
     from fleet.client import tool_environment
     from fleet.plan import build_view
 
