@@ -37,6 +37,12 @@ WORLD_TEMPLATE = "world"
 # The agent the local daemon (`fleet up`) runs, and the one a spec gets when it names none.
 LOCAL_AGENT = "local"
 
+
+def daemon_agents(extra: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """The agents a local daemon runs: `local`, then those `fleet up --agent` named, once each."""
+    return list(dict.fromkeys([LOCAL_AGENT, *extra]))
+
+
 # ---------------------------------------------------------------------------------------------
 # File names of a bundle and of the templates
 

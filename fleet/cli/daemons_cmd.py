@@ -80,12 +80,23 @@ def up(
         None, "--listen", "-l", help="Endpoint (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."
     ),
     zenoh_config: Path | None = ZenohConfigOption,
+    agents: list[str] = typer.Option(
+        [],
+        "--agent",
+        "-a",
+        help="Also run an agent of this name (repeatable): a spec for several computers on this one.",
+    ),
 ) -> None:
     """Start the local background daemon (router + agent `local`); state in $FLEET_STATE_DIR."""
+    from fleet import rules
     from fleet.client import local_daemon
-    from fleet.rules import state_dir
+    from fleet.errors import FleetError, Location
     from fleet.wire.session import config_file, default_endpoint
 
+    for name in agents:
+        if problem := rules.key_name_problem(name):
+            raise FleetError(f"agent name {problem}", Location(f"--agent {name}"))
     endpoint = listen or default_endpoint()
-    pid = local_daemon.start(endpoint, config_file(zenoh_config))
-    typer.echo(f"fleet daemon running (pid {pid}) on {endpoint}; state in {state_dir()}")
+    pid = local_daemon.start(endpoint, config_file(zenoh_config), agents=agents)
+    running = ", ".join(local_daemon.running_agents(pid))
+    typer.echo(f"fleet daemon running (pid {pid}) on {endpoint} with agents {running}; state in {rules.state_dir()}")

@@ -83,7 +83,6 @@ def deploy(
     from fleet.cli.render_cmd import load_and_expand
     from fleet.client import deploy as deploy_fleet
     from fleet.client.local_daemon import connect_or_start
-    from fleet.rules import LOCAL_AGENT
 
     expansion = load_and_expand(spec, set_)  # a bad spec raises here, before anything is sent
     if dry_run:
@@ -91,8 +90,8 @@ def deploy(
 
         print_json(plan_data(expansion)) if json else print_plan(expansion, console())
         return
-    needs_local = bool(expansion.for_agent(LOCAL_AGENT))
-    with connect_or_start(connect, zenoh_config, needs_local, lambda line: typer.echo(line, err=True)) as control:
+    agents = {bundle.agent for bundle in expansion.bundles}
+    with connect_or_start(connect, zenoh_config, agents, lambda line: typer.echo(line, err=True)) as control:
         progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())
         with progress:
             outcome = deploy_fleet(control, expansion, wait=wait, timeout=timeout, on_progress=progress.update)

@@ -4,6 +4,7 @@ state directory (fleet.rules.state_dir)."""
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 import time
@@ -12,7 +13,7 @@ from pathlib import Path
 
 from fleet.client.control_client import ControlClient, connect
 from fleet.errors import ControlError
-from fleet.rules import LOCAL_AGENT, daemon_log_file, daemon_pid_file, state_dir
+from fleet.rules import LOCAL_AGENT, daemon_agents, daemon_log_file, daemon_pid_file, state_dir
 
 START_TIMEOUT = 20.0
 STOP_TIMEOUT = 30.0
@@ -32,14 +33,37 @@ def running_pid(root: Path) -> int | None:
     return None
 
 
-def start(listen: str, zenoh_config: Path | None = None, root: Path | None = None) -> int:
-    """Start the daemon detached (or find it running); returns once its local agent answers."""
+def running_agents(pid: int) -> list[str]:
+    """The agents the daemon `pid` runs, from its command line."""
+    import psutil
+
+    try:
+        argv = psutil.Process(pid).cmdline()
+    except psutil.Error:
+        return []
+    return daemon_agents([value for flag, value in itertools.pairwise(argv) if flag == "--agent"])
+
+
+def start(
+    listen: str, zenoh_config: Path | None = None, root: Path | None = None, agents: list[str] | tuple[str, ...] = ()
+) -> int:
+    """Start the daemon detached with `local` and `agents` (or find it running with them all);
+    returns once every one of them answers."""
     root = root or state_dir()
     pid = running_pid(root)
     if pid is not None:
+        runs = running_agents(pid)
+        missing = [name for name in daemon_agents(agents) if name not in runs]
+        if missing:
+            raise ControlError(
+                f"the local daemon (pid {pid}) runs agents {', '.join(runs)}, not {', '.join(missing)}: "
+                f"stop it with `fleet down --all`, then start it with every agent you need"
+            )
         return pid
     root.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "fleet.server.daemon", "--listen", listen, "--state-dir", str(root)]
+    for name in daemon_agents(agents)[1:]:
+        command += ["--agent", name]
     if zenoh_config is not None:
         command += ["--zenoh-config", str(zenoh_config)]
     with open(daemon_log_file(root), "ab") as log_file:
@@ -52,23 +76,27 @@ def start(listen: str, zenoh_config: Path | None = None, root: Path | None = Non
             close_fds=True,
         )
     daemon_pid_file(root).write_text(f"{process.pid}\n")
-    if not _local_agent_answers(listen, zenoh_config, process, START_TIMEOUT):
+    if not _agents_answer(listen, zenoh_config, process, daemon_agents(agents), START_TIMEOUT):
         stop(root)
         raise ControlError(f"the local daemon did not come up on {listen}; see {daemon_log_file(root)}")
     return process.pid
 
 
-def _local_agent_answers(listen: str, zenoh_config: Path | None, process, timeout: float) -> bool:
+def _agents_answer(listen: str, zenoh_config: Path | None, process, names: list[str], timeout: float) -> bool:
     from fleet.wire import protocol as p
 
+    waiting = set(names)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and process.poll() is None:
         try:
             with ControlClient([listen], zenoh_config) as client:
                 while time.monotonic() < deadline and process.poll() is None:
-                    for reply in client.session.get(p.agent_status_key("*", LOCAL_AGENT), timeout=1.0):
-                        if reply.ok is not None:
-                            return True
+                    for name in sorted(waiting):
+                        for reply in client.session.get(p.agent_status_key("*", name), timeout=1.0):
+                            if reply.ok is not None:
+                                waiting.discard(name)
+                    if not waiting:
+                        return True
                     time.sleep(0.05)
         except ControlError:
             time.sleep(0.05)
@@ -98,12 +126,13 @@ def stop(root: Path | None = None) -> bool:
 def connect_or_start(
     endpoint: str | None,
     zenoh_config: Path | None,
-    needs_local: bool,
+    agents: set[str],
     announce: Callable[[str], None],
 ) -> ControlClient:
     """Connect; if nothing answers on the default endpoint (a loopback one, not an explicit
-    `endpoint`) and `needs_local` (the spec places robots on the local agent), start the local
-    daemon there first, after telling `announce`."""
+    `endpoint`) and the spec places robots on the local agent (one of `agents`), start the local
+    daemon there first, after telling `announce`.  A spec for other agents is never started here
+    by itself (its agents may be other computers): the error says how to run them on this one."""
     from fleet.wire.session import config_file, default_endpoint
 
     try:
@@ -111,8 +140,15 @@ def connect_or_start(
     except ControlError:
         default = default_endpoint()
         on_loopback = any(host in default for host in ("/127.0.0.1:", "/localhost:", "/[::1]:"))
-        if endpoint is not None or not on_loopback or not needs_local:
+        if endpoint is not None or not on_loopback:
             raise
+        if LOCAL_AGENT not in agents:
+            names = sorted(agents)
+            raise ControlError(
+                f"no fleet router answers at {default}, and this spec's agents are not `local`: to run them on "
+                f"this computer, `fleet up {' '.join(f'--agent {name}' for name in names)}` first; on others, "
+                "give their router with --connect (docs/multi-computer.md)"
+            ) from None
     announce(f"starting the local fleet daemon on {default} (state in {state_dir()})")
     start(default, config_file(zenoh_config))
     return connect(None, zenoh_config)

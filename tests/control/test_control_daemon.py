@@ -50,3 +50,54 @@ def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp
         assert running_pid(state) is None and not (state / "daemon.pid").exists()
     finally:
         cluster.cli("down", "--all", env=env)
+
+
+def test_up_with_agents_runs_a_spec_for_several_computers_on_this_one(fresh_cluster, tmp_path):
+    cluster = fresh_cluster
+    state = tmp_path / "state"
+    env = dict(cluster.env, FLEET_STATE_DIR=str(state), FLEET_CONNECT=cluster.endpoint)
+    spec = cluster.spec(
+        agents={"rack_a": {}, "rack_b": {}},
+        defaults={"template": "tiny", "agent": "rack_a"},
+        robots=[{"name": "robot1"}, {"name": "robot2", "agent": "rack_b"}],
+    )
+    try:
+        # Nothing listens, and the spec is not for the local agent: nothing is started, the error
+        # says how to run its agents here.
+        refused = cluster.cli("deploy", str(spec), env=env)
+        assert refused.returncode == 1 and refused.stdout == "", refused.stdout + refused.stderr
+        assert len(refused.stderr.splitlines()) == 1
+        assert "`fleet up --agent rack_a --agent rack_b`" in refused.stderr
+        assert running_pid(state) is None
+
+        bad = cluster.cli("up", "--agent", "rack/a", env=env)
+        assert bad.returncode == 2 and bad.stderr.startswith("fleet: error: --agent rack/a: agent name"), bad.stderr
+        assert running_pid(state) is None
+
+        up = cluster.cli("up", "--agent", "rack_a", "-a", "rack_b", env=env)
+        assert up.returncode == 0, up.stdout + up.stderr
+        assert "with agents local, rack_a, rack_b" in up.stdout
+        pid = running_pid(state)
+        assert pid is not None
+
+        done = cluster.cli("deploy", str(spec), env=env)
+        assert done.returncode == 0, done.stdout + done.stderr
+        status = json.loads(cluster.cli("status", "--json", env=env).stdout)
+        assert {(r["name"], r["agent"], r["state"]) for r in status["robots"]} == {
+            ("robot1", "rack_a", "running"),
+            ("robot2", "rack_b", "running"),
+        }
+        assert {a["name"] for a in status["agents"] if a["online"]} == {"local", "rack_a", "rack_b"}
+        node_pids = {node["pid"] for r in status["robots"] for node in r["nodes"]}
+        assert all(psutil.Process(p).ppid() == pid for p in node_pids)  # the daemon runs them all
+
+        # A running daemon without an agent asked for says so instead of pretending to run it.
+        more = cluster.cli("up", "--agent", "rack_c", env=env)
+        assert more.returncode == 1 and "runs agents local, rack_a, rack_b, not rack_c" in more.stderr, more.stderr
+
+        down = cluster.cli("down", "--all", env=env)
+        assert down.returncode == 0, down.stdout + down.stderr
+        wait_processes_gone([pid], 10)
+        assert not any(psutil.pid_exists(p) for p in node_pids)
+    finally:
+        cluster.cli("down", "--all", env=env)
