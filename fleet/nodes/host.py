@@ -97,13 +97,18 @@ def parse_request(line: bytes) -> dict[str, Any]:
 class Host:
     """The robots of this process and the executor spinning their nodes (main thread only)."""
 
-    def __init__(self) -> None:
+    def __init__(self, context: Any = None) -> None:
         from rclpy.executors import SingleThreadedExecutor
 
-        self.executor = SingleThreadedExecutor()
+        self.executor = SingleThreadedExecutor(context=context)  # context: rclpy's default one
         self.robots: dict[str, HostedRobot] = {}
         self.owner: dict[int, str] = {}  # id(node) -> robot, for the nodes alive now
         self.requests: queue.Queue[tuple[dict[str, Any], Future]] = queue.Queue()
+        # The same object at every wait: rclpy's executor keeps its generator of ready callbacks
+        # only while the arguments compare equal, and a new lambda each time made it build its
+        # wait set over every entity of every node for each single callback (at 25 robots on sim
+        # time the host could not keep up with /clock, and their nodes never started driving).
+        self._requests_waiting = lambda: not self.requests.empty()
 
     # -- requests (main thread) --
 
@@ -243,7 +248,7 @@ class Host:
 
         try:
             ready: tuple[Any, Any, Any] = self.executor.wait_for_ready_callbacks(
-                WAIT, None, lambda: not self.requests.empty()
+                WAIT, None, self._requests_waiting
             )
             handler, node = ready[0], ready[2]
         except (TimeoutException, ShutdownException, ConditionReachedException):

@@ -1,0 +1,40 @@
+"""The host process's spinning (fleet.nodes.host.Host), in a context of the test's own."""
+
+from __future__ import annotations
+
+import time
+
+from fleet.nodes.host import Host
+
+
+def test_one_wait_serves_every_callback_ready_together(ros):
+    """A host of 25 robots on sim time has 75 nodes with a /clock subscription each: every wait
+    must serve all the callbacks it found ready, not be rebuilt over every entity for each one
+    (rebuilt per callback, the host fell behind /clock and its robots never started driving)."""
+    import rclpy
+
+    host = Host(context=ros.context)
+    node = rclpy.create_node("many_timers", context=ros.context)
+    fired: list[int] = []
+    for index in range(20):
+        node.create_timer(0.001, lambda index=index: fired.append(index))  # all due at every wait
+    host.executor.add_node(node)
+    waits = 0
+    build = host.executor._wait_for_ready_callbacks  # rclpy: one call per wait set built
+
+    def counted(*args, **kwargs):
+        nonlocal waits
+        waits += 1
+        return build(*args, **kwargs)
+
+    host.executor._wait_for_ready_callbacks = counted  # type: ignore[method-assign]
+    try:
+        time.sleep(0.01)
+        for _ in range(200):
+            host.spin_once()
+        assert len(fired) == 200
+        assert waits <= 40, f"{waits} waits for 200 callbacks of 20 timers due together"
+    finally:
+        host.executor.remove_node(node)
+        node.destroy_node()
+        host.executor.shutdown()
