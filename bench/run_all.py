@@ -20,6 +20,7 @@ BENCHMARKS = {
     "render_scaling": ["bench_expand.py", "--scaling"],
     "world": ["bench_world.py"],
     "isolation": ["bench_isolation.py"],
+    "sim_fleet": ["bench_sim_fleet.py"],
     "control": ["bench_control.py"],
     "dataplane": ["bench_dataplane.py"],
     "plots": ["plots.py"],  # last: draws what the others wrote
