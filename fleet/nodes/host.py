@@ -247,9 +247,7 @@ class Host:
         from rclpy.executors import ConditionReachedException, ShutdownException, TimeoutException
 
         try:
-            ready: tuple[Any, Any, Any] = self.executor.wait_for_ready_callbacks(
-                WAIT, None, self._requests_waiting
-            )
+            ready: tuple[Any, Any, Any] = self.executor.wait_for_ready_callbacks(WAIT, None, self._requests_waiting)
             handler, node = ready[0], ready[2]
         except (TimeoutException, ShutdownException, ConditionReachedException):
             return
