@@ -70,6 +70,27 @@ def wait_driving(fleet, robots, sim_timeout: float = 15.0, distance: float = 0.1
     )
 
 
+def wait_every_robot_left_its_spawn(fleet, distance: float = 0.2, sim_timeout: float = 30.0) -> None:
+    """Wait until every robot of the spec has been `distance` away from where the spec spawns it.
+
+    From the spawn, and once is enough: under load a robot may have driven its course before the
+    fleet is up (safety_stop's scout stops at its crate 1.4 m out), and a looping one passes its
+    spawn point again."""
+    spawns = {robot.name: (robot.pose.x, robot.pose.y) for robot in fleet.spec.robots}
+    moved: set[str] = set()
+
+    def still() -> list[str]:
+        moved.update(robot for robot, spawn in spawns.items() if fleet.pose(robot).distance_to(spawn) >= distance)
+        return sorted(set(spawns) - moved)
+
+    fleet.wait_for(
+        lambda: not still(),
+        sim_timeout=sim_timeout,
+        what=f"every robot to move {distance} m",
+        explain=lambda: f"not moved: {', '.join(still())}",
+    )
+
+
 def odom_speeds(messages, window: float = 0.5) -> list[float]:
     """Speeds (m/s) measured from odometry positions over `window` seconds of message (sim) time."""
     samples = [

@@ -8,6 +8,7 @@ import yaml
 
 from fleet.testing import running_fleet
 from tests.checkout import REPO
+from tests.e2e.e2e_helpers import wait_every_robot_left_its_spawn
 
 pytestmark = pytest.mark.integration
 
@@ -32,20 +33,7 @@ def test_thirty_robots_on_the_default_isolation_all_drive(tmp_path):
     path = tmp_path / "thirty.yaml"
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
     with running_fleet(path, directory=tmp_path / "run", timeout=180) as fleet:
-        assert {row.get("isolation") for row in [b.options for b in fleet.expansion.bundles if b.kind == "robot"]} == {
-            "agent"
-        }
-        spawns = {robot.name: (robot.pose.x, robot.pose.y) for robot in fleet.spec.robots}
-        moved: set[str] = set()
-
-        def still():
-            moved.update(robot for robot, spawn in spawns.items() if fleet.pose(robot).distance_to(spawn) >= 0.2)
-            return sorted(set(spawns) - moved)
-
-        fleet.wait_for(
-            lambda: not still(),
-            sim_timeout=30,
-            what="every robot to move 0.2 m",
-            explain=lambda: f"not moved: {', '.join(still())}",
-        )
+        robots = [bundle for bundle in fleet.expansion.bundles if bundle.kind == "robot"]
+        assert {bundle.options.get("isolation") for bundle in robots} == {"agent"}  # the default
+        wait_every_robot_left_its_spawn(fleet)
         assert fleet.status().all_running
