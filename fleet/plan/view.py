@@ -359,16 +359,20 @@ def _heard_since_start(row: RobotRow, summary: p.WorldSummary) -> bool:
     robot = summary.robots.get(row.name)
     if robot is None or robot.cmd_age is None:
         return False
-    uptimes = [u for u in (node.get("uptime") for node in row.nodes) if isinstance(u, (int, float)) and u > 0]
+    uptimes = [u for u in _uptimes(row) if u > 0]
     if not uptimes:
         return True  # no start time to compare with (an agent that does not report uptimes)
     return robot.cmd_age + (summary.age or 0.0) < max(uptimes)
 
 
 def _young(row: RobotRow) -> bool:
-    uptimes = [node.get("uptime") for node in row.nodes]
-    known = [u for u in uptimes if isinstance(u, (int, float))]
+    known = _uptimes(row)
     return bool(known) and min(known) < STARTUP_GRACE
+
+
+def _uptimes(row: RobotRow) -> list[float]:
+    """The uptimes its agent reported for the row's nodes (s; a node's entry may lack one)."""
+    return [u for u in (node.get("uptime") for node in row.nodes) if isinstance(u, (int, float))]
 
 
 def locate_world(view: FleetView, fleet: str | None = None) -> tuple[str, str]:
