@@ -108,12 +108,21 @@ class ControlClient:
         )
 
     def put_plan(self, plan: p.PlanRecord) -> None:
-        self.session.put(p.plan_key(plan.fleet), p.encode(plan))
+        self._put(p.plan_key(plan.fleet), p.encode(plan))
 
     def put_desired(self, requests: list[p.ApplyRequest]) -> None:
         """Leave each agent's desired state with the router: an agent that was away fetches it."""
         for request in requests:
-            self.session.put(p.desired_key(request.fleet, request.agent), p.encode(request))
+            self._put(p.desired_key(request.fleet, request.agent), p.encode(request))
+
+    def _put(self, key: str, payload: bytes) -> None:
+        """A put the router must get.  Zenoh's default for a put is to drop it when the session's
+        send queue is still full a millisecond later: a deploy's desired states (tens of KiB each)
+        filled it, the plan put right after them was dropped about one deploy in five on a busy
+        machine, and the deploy then waited for a plan the router never had until its timeout."""
+        import zenoh
+
+        self.session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
 
 
 def _one_reply(handler: Iterable[zenoh.Reply], model: type[p.MessageT], what: str) -> p.MessageT:

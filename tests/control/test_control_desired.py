@@ -4,12 +4,15 @@ it when it connects (and every few seconds)."""
 
 from __future__ import annotations
 
+import os
 import signal
+import threading
 import time
 
 import pytest
 
 from fleet.client import down
+from fleet.testing.control_plane import ROUTER
 from fleet.testing.poll import poll
 from fleet.wire import protocol as p
 from tests.control.control_helpers import robot, wait_processes_gone
@@ -144,3 +147,39 @@ def test_the_router_ends_every_desired_state_answer(fresh_cluster):
         query = p.encode(p.DesiredQuery(held={"tiny": 0}))
         with_fleet = client.session.get(p.desired_key("tiny", "hostA"), payload=query, timeout=5)
         assert [str(r.ok.key_expr) for r in with_fleet if r.ok is not None] == [p.desired_key("tiny", "hostA")]
+
+
+def test_a_plan_put_right_after_a_deploy_s_desired_states_reaches_the_router(fresh_cluster):
+    """A deploy puts each agent's desired state, then the plan, back to back.  With Zenoh's
+    default for puts (dropped when the send queue is still full a millisecond later) the plan
+    was lost behind large desired states about one deploy in five on a busy machine, and
+    `fleet deploy` waited for it until its timeout.  Here the router is frozen for a second while
+    they are sent (a busy machine, exaggerated): the puts must wait for it, not be dropped."""
+    cluster = fresh_cluster
+    cluster.start_router()
+    router = cluster.pid(ROUTER)
+    assert router is not None
+    # 100 agents' desired states of 50 KB each (a robot's parameters and launch files make tens
+    # of KiB), then the plan.  Built unchecked: the router ignores them, only the send queue matters.
+    states = [
+        p.ApplyRequest.model_construct(
+            fleet="tiny", agent=f"agent{index}", generation=7, domain_id=1, bundles=[], discovery_host="x" * 50_000
+        )
+        for index in range(100)
+    ]
+    plan = p.PlanRecord(fleet="tiny", generation=7, robots={"robot1": "agent0"}, deployed_at=time.time())
+    with cluster.client() as client:
+        poll(lambda: client.status("tiny")[1], until=bool, timeout=10, what="the router's registry to answer")
+        os.kill(router, signal.SIGSTOP)
+        thaw = threading.Timer(1.0, os.kill, (router, signal.SIGCONT))
+        thaw.start()
+        try:
+            client.put_desired(states)
+            client.put_plan(plan)
+        finally:
+            thaw.join()
+
+        def plans_held() -> list[int]:
+            return [record.generation for reply in client.status("tiny")[1] for record in reply.history]
+
+        assert poll(plans_held, until=bool, timeout=10, what="the router to hold the plan") == [7]
