@@ -98,17 +98,12 @@ class Host:
     """The robots of this process and the executor spinning their nodes (main thread only)."""
 
     def __init__(self, context: Any = None) -> None:
-        from rclpy.executors import SingleThreadedExecutor
+        from fleet.nodes.batch_executor import BatchExecutor
 
-        self.executor = SingleThreadedExecutor(context=context)  # context: rclpy's default one
+        self.executor = BatchExecutor(context=context)  # context: rclpy's default one
         self.robots: dict[str, HostedRobot] = {}
         self.owner: dict[int, str] = {}  # id(node) -> robot, for the nodes alive now
         self.requests: queue.Queue[tuple[dict[str, Any], Future]] = queue.Queue()
-        # The same object at every wait: rclpy's executor keeps its generator of ready callbacks
-        # only while the arguments compare equal, and a new lambda each time made it build its
-        # wait set over every entity of every node for each single callback (at 25 robots on sim
-        # time the host could not keep up with /clock, and their nodes never started driving).
-        self._requests_waiting = lambda: not self.requests.empty()
 
     # -- requests (main thread) --
 
@@ -244,23 +239,12 @@ class Host:
     # -- spinning --
 
     def spin_once(self) -> None:
-        from rclpy.executors import ConditionReachedException, ShutdownException, TimeoutException
+        """Wait for callbacks (or a request: submit wakes the executor), run all found ready."""
+        self.executor.spin_once(WAIT, on_error=self.callback_failed)
 
-        try:
-            ready: tuple[Any, Any, Any] = self.executor.wait_for_ready_callbacks(WAIT, None, self._requests_waiting)
-            handler, node = ready[0], ready[2]
-        except (TimeoutException, ShutdownException, ConditionReachedException):
-            return
-        except Exception as error:  # e.g. an entity of a node destroyed a moment ago: wait again
-            print(f"{PROGRAM}: waiting for callbacks: {error!r}", file=sys.stderr, flush=True)
-            time.sleep(0.05)
-            return
-        handler()
-        raised = handler.exception()
-        if raised is None:
-            return
-        robot_name = self.owner.get(id(node)) if node is not None else None
-        if robot_name is None:  # a node destroyed a moment ago, or no node at all: nobody to restart
+    def callback_failed(self, node: Any, raised: BaseException) -> None:
+        robot_name = self.owner.get(id(node))
+        if robot_name is None:  # a node destroyed a moment ago: nobody to restart
             print(f"{PROGRAM}: exception in a callback of no live robot: {raised!r}", file=sys.stderr, flush=True)
             return
         self.fault(self.robots[robot_name], node, raised)
