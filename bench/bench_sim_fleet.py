@@ -10,8 +10,11 @@ the agent `local`, each patrolling a small square on sim time, with nothing but 
 - CPU over 10 s once up, per kind of process (the hosts, the world's physics process, its ROS
   process, the agent), in % of one core, and the world's real-time factor.
 
+`--isolation robot` (or `process`) runs the same fleet with that isolation instead: the CPU of
+its node processes is then reported beside the hosts' (none).
+
 Usage: .venv/bin/python bench/bench_sim_fleet.py [--robots 10 30] [--timeout 120]
-       [--output bench/results/sim_fleet.md]
+       [--group-size G] [--isolation robot|process|agent] [--output bench/results/sim_fleet.md]
 """
 
 from __future__ import annotations
@@ -35,15 +38,16 @@ from fleet.testing.fleet_handle import FleetHandle
 
 TEMPLATES = Path(__file__).resolve().parent.parent / "templates"
 WINDOW = 10.0  # s of CPU measurement once up
-KINDS = {  # what a process is, by a piece of its command line
+KINDS = {  # what a process is, by a piece of its command line (the first that matches)
     "hosts": "fleet.nodes.host",
     "world physics": "fleet_nodes/world",
+    "node processes": "fleet_nodes/",  # isolation robot or process
     "world ROS": "fleet.world.ros_process",
     "agent": " agent ",
 }
 
 
-def spec(robots: int, group_size: int | None) -> dict:
+def spec(robots: int, group_size: int | None, isolation: str | None = None) -> dict:
     """N robots 2 m apart in rows of 10, each on a 1 m square, in a walled yard."""
     defaults: dict = {
         "template": "diff_drive",
@@ -52,6 +56,8 @@ def spec(robots: int, group_size: int | None) -> dict:
     }
     if group_size is not None:
         defaults["group_size"] = group_size
+    if isolation is not None:
+        defaults["isolation"] = isolation
     return {
         "fleet": f"sim{robots}",
         "templates": str(TEMPLATES),
@@ -90,10 +96,10 @@ def cpu_by_kind(root: int) -> dict[str, float]:
     return usage
 
 
-def measure(robots: int, timeout: float, group_size: int | None = None) -> dict:
+def measure(robots: int, timeout: float, group_size: int | None = None, isolation: str | None = None) -> dict:
     directory = Path(tempfile.mkdtemp(prefix=f"bench-sim-{robots}-"))
     path = directory / "fleet.yaml"
-    path.write_text(yaml.safe_dump(spec(robots, group_size), sort_keys=False))
+    path.write_text(yaml.safe_dump(spec(robots, group_size, isolation), sort_keys=False))
     handle = FleetHandle(path, directory / "run")
     result: dict = {"robots": robots}
     try:
@@ -114,14 +120,14 @@ def measure(robots: int, timeout: float, group_size: int | None = None) -> dict:
     return result
 
 
-def report(results: list[dict], timeout: float) -> str:
+def report(results: list[dict], timeout: float, isolation: str | None) -> str:
     lines = [
-        "# A simulated fleet on the default isolation",
+        f"# A simulated fleet, isolation: {isolation or 'the default'}",
         "",
         f"Machine: {machine_description()}",
         "",
-        "| robots | up (s) | running | CPU hosts | CPU world physics | CPU world ROS | CPU agent | RTF |",
-        "|---|---|---|---|---|---|---|---|",
+        "| robots | up (s) | running | " + " | ".join(f"CPU {kind}" for kind in KINDS) + " | RTF |",
+        "|---|---|---|" + "---|" * len(KINDS) + "---|",
     ]
     for r in results:
         up = f"{r['up']:.1f}" if r["up"] is not None else f"not all in {timeout:.0f}"
@@ -145,11 +151,12 @@ def main() -> None:
     parser.add_argument("--robots", type=int, nargs="+", default=[10, 30])
     parser.add_argument("--timeout", type=float, default=120.0)
     parser.add_argument("--group-size", type=int, default=None, help="robots per host (default: the spec's default)")
+    parser.add_argument("--isolation", default=None, help="robot, process or agent (default: the spec's default)")
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "results" / "sim_fleet.md")
     args = parser.parse_args()
     compile_checkout()
-    results = [measure(robots, args.timeout, args.group_size) for robots in args.robots]
-    text = report(results, args.timeout)
+    results = [measure(robots, args.timeout, args.group_size, args.isolation) for robots in args.robots]
+    text = report(results, args.timeout, args.isolation)
     print(text)
     args.output.write_text(text)
 

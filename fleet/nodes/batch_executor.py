@@ -5,7 +5,8 @@ wait, enters each one's handle, and matches each QoS event handler against a lis
 (quadratic in the handlers: a robot's three fleet nodes have 36, one per publisher or
 subscription and kind of event).  A host of 10 robots on sim time used 76% of a core, most of it
 there (py-spy), for callbacks that themselves took a few percent; with this executor 36%
-(bench/README.md, "A simulated fleet").  This executor
+(bench/README.md, "A simulated fleet").  The hosts (isolation: agent) and the node processes of
+the other isolations (fleet.nodes.common.run) spin with it.  It
 
 - keeps the entity lists and the wait set between waits, and gathers them again only when a node
   is added or removed or a node creates or destroys an entity (rclpy then calls `wake`);

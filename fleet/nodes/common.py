@@ -26,10 +26,11 @@ from rcl_interfaces.msg import (
 )
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
+
+from fleet.nodes.batch_executor import BatchExecutor
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
@@ -263,7 +264,7 @@ def run(program: str, init_args: list[str], factories: Iterable[Callable[[], Nod
             return _fail(program, str(exc))
         except Exception as exc:  # invalid names or remappings in the arguments, mostly
             return _fail(program, _one_line(exc))
-        executor = SingleThreadedExecutor()
+        executor = BatchExecutor()  # as a host's: an exception in a callback ends the process
         for node in nodes:
             executor.add_node(node)
         while not stop_requested and rclpy.ok():
