@@ -97,7 +97,8 @@ class BatchExecutor:
     # -- spinning --
 
     def spin_once(self, timeout_sec: float | None = None, on_error: ErrorHandler | None = None) -> None:
-        """Wait up to `timeout_sec` (None: no limit) for work, then run every callback found ready.
+        """Wait up to `timeout_sec` (None: no limit), and at most until the next look at the
+        services and QoS events, for work; then run every callback found ready.
         An exception escaping a callback goes to `on_error(node, exception)`, and that node's
         further callbacks in this batch run only while it is still added; without `on_error` it
         propagates, as from rclpy's executors."""
