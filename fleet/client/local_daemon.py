@@ -50,10 +50,11 @@ def start(
     """Start the daemon detached with `local` and `agents` (or find it running with them all);
     returns once every one of them answers."""
     root = root or state_dir()
+    names = daemon_agents(agents)
     pid = running_pid(root)
     if pid is not None:
         runs = running_agents(pid)
-        missing = [name for name in daemon_agents(agents) if name not in runs]
+        missing = [name for name in names if name not in runs]
         if missing:
             raise ControlError(
                 f"the local daemon (pid {pid}) runs agents {', '.join(runs)}, not {', '.join(missing)}: "
@@ -62,7 +63,7 @@ def start(
         return pid
     root.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "fleet.server.daemon", "--listen", listen, "--state-dir", str(root)]
-    for name in daemon_agents(agents)[1:]:
+    for name in names[1:]:  # `local` is the daemon's own
         command += ["--agent", name]
     if zenoh_config is not None:
         command += ["--zenoh-config", str(zenoh_config)]
@@ -76,7 +77,7 @@ def start(
             close_fds=True,
         )
     daemon_pid_file(root).write_text(f"{process.pid}\n")
-    if not _agents_answer(listen, zenoh_config, process, daemon_agents(agents), START_TIMEOUT):
+    if not _agents_answer(listen, zenoh_config, process, names, START_TIMEOUT):
         stop(root)
         raise ControlError(f"the local daemon did not come up on {listen}; see {daemon_log_file(root)}")
     return process.pid

@@ -31,6 +31,14 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from rclpy.event_handler import EventHandler
+from rclpy.exceptions import InvalidHandle
+from rclpy.guard_condition import GuardCondition
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.subscription import Subscription
+from rclpy.utilities import get_default_context
+from rclpy.waitable import NumberOfEntities
+
 POLL_PERIOD = 0.05  # s between two looks at the services and QoS event handlers
 
 ErrorHandler = Callable[[Any, BaseException], None]  # (node, exception)
@@ -40,9 +48,6 @@ class BatchExecutor:
     """`add_node`, `remove_node`, `spin_once(timeout_sec)`, `wake` (any thread), `shutdown`."""
 
     def __init__(self, context: Any = None) -> None:
-        from rclpy.guard_condition import GuardCondition
-        from rclpy.utilities import get_default_context
-
         self._context = context if context is not None else get_default_context()
         self._wake: Any = GuardCondition(None, None, self._context)  # None once shut down
         self._context.on_shutdown(self.wake)
@@ -52,11 +57,10 @@ class BatchExecutor:
         self._wait_set: Any = None
         self._polled_wait_set: Any = None  # the services and QoS event handlers
         self._next_poll = 0.0
-        self._handles: dict[str, list[Any]] = {}  # kind -> the handles added at every wait
+        self._handles: dict[str, list[Any]] = {}  # kind -> its handles (services: polled, the rest: waited on)
         self._entities: dict[str, dict[int, tuple[Any, Any]]] = {}  # kind -> pointer -> (entity, node)
         self._waitables: list[tuple[Any, Any]] = []  # (waitable, node), other than QoS events
         self._events: list[tuple[Any, Any]] = []  # (QoS event handler, node)
-        self._services: dict[int, tuple[Any, Any]] = {}  # pointer -> (service, node)
 
     # -- the nodes --
 
@@ -136,8 +140,6 @@ class BatchExecutor:
             self._poll(on_error)
 
     def _run(self, node: Any, call: Callable[[Any], None], entity: Any, on_error: ErrorHandler | None) -> None:
-        from rclpy.exceptions import InvalidHandle
-
         if id(node) not in self._live:  # removed by an earlier callback of this batch (a fault)
             return
         try:
@@ -154,7 +156,7 @@ class BatchExecutor:
         self._next_poll = time.monotonic() + POLL_PERIOD
         if self._stale:  # a callback of this batch removed a node (a fault): its handles are gone
             self._gather()
-        if not (self._services or self._events):
+        if not (self._handles["service"] or self._events):
             return
         wait_set = self._polled_wait_set
         wait_set.clear_entities()
@@ -164,7 +166,7 @@ class BatchExecutor:
             handler.add_to_wait_set(wait_set)
         wait_set.wait(0)
         for pointer in wait_set.get_ready_entities("service"):
-            found = self._services.get(pointer)
+            found = self._entities["service"].get(pointer)
             if found is not None:
                 self._run(found[1], _call_service, found[0], on_error)
         for handler, node in self._events:
@@ -172,10 +174,6 @@ class BatchExecutor:
                 self._run(node, _call_waitable, handler, on_error)
 
     def _gather(self) -> None:
-        from rclpy.event_handler import EventHandler
-        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-        from rclpy.waitable import NumberOfEntities
-
         self._stale = False
         members: dict[str, Iterable[tuple[Any, Any]]] = {
             "subscription": [(s, node) for node in self._nodes for s in node.subscriptions],
@@ -186,7 +184,6 @@ class BatchExecutor:
         }
         self._entities = {kind: {e.handle.pointer: (e, node) for e, node in pairs} for kind, pairs in members.items()}
         self._handles = {kind: [e.handle for e, _ in pairs] for kind, pairs in members.items()}
-        self._services = self._entities.pop("service")
         waitables = [(w, node) for node in self._nodes for w in node.waitables]
         self._events = [(w, node) for w, node in waitables if isinstance(w, EventHandler)]
         self._waitables = [(w, node) for w, node in waitables if not isinstance(w, EventHandler)]
@@ -229,8 +226,6 @@ def _call_timer(timer: Any) -> None:
 
 
 def _call_subscription(subscription: Any) -> None:
-    from rclpy.subscription import Subscription
-
     with_info = subscription._callback_type is not Subscription.CallbackType.MessageOnly
     while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
         _finish(subscription.callback(*taken) if with_info else subscription.callback(taken[0]))
