@@ -187,7 +187,8 @@ def down(
     client: ControlClient, fleet: str, wait: bool = True, timeout: float = 30.0
 ) -> dict[str, p.ApplyReply | ControlError]:
     """Send every agent serving `fleet` an empty desired state (left with the router too, for
-    agents away now) and forget the plan.  ControlError, nothing sent, for a fleet unknown here."""
+    agents away now) and forget the plan; with `wait`, return once the robots have stopped and the
+    router holds the empty plan.  ControlError, nothing sent, for a fleet unknown here."""
     statuses, registries = fleet_status(client, fleet)
     view = build_view(statuses, registries, time.time())
     generation = new_generation()
@@ -206,10 +207,13 @@ def down(
     replies = client.send_applies(requests) if requests else {}
     client.put_desired(with_planned_agents(requests, registries, fleet, generation, view.domain_ids.get(fleet, 0)))
     client.put_plan(p.PlanRecord(fleet=fleet, generation=generation, robots={}, deployed_at=time.time()))
+    # Until the router has taken the empty plan, a `fleet status` right after `fleet down` would
+    # show the last plan's robots as pending.
     deadline = time.monotonic() + timeout
-    while wait and requests and time.monotonic() < deadline:
-        statuses, _ = client.status(fleet)
-        if not any(status.robots for status in statuses if status.fleet == fleet):
+    while wait and time.monotonic() < deadline:
+        statuses, registries = client.status(fleet)
+        stopped = not any(status.robots for status in statuses if status.fleet == fleet)
+        if stopped and _plan_taken(registries, fleet, generation):
             break
         time.sleep(POLL_INTERVAL)
     return replies

@@ -1,4 +1,4 @@
-"""A deploy judges its robots only once the router holds its plan.
+"""A deploy judges its robots only once the router holds its plan; `fleet down` returns only then.
 
 The router takes a deploy's plan (a put) and answers status (a query) on different threads, so
 the first status after a deploy can still carry the last plan: a robot the deploy removed then
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import yaml
 
-from fleet.client import deploy
+from fleet.client import deploy, down
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
 from fleet.wire import protocol as p
@@ -31,6 +31,7 @@ class LaggingRouter:
         placed = dict.fromkeys(robots, "hostA")
         self.plans = [p.PlanRecord(fleet="tiny", generation=generation, robots=placed, deployed_at=0.0)]
         self.arriving: list[p.PlanRecord] = []
+        self.answered: p.RegistryReply | None = None  # the registry's last answer
 
     def status(self, fleet=None, timeout=3.0):
         statuses = [
@@ -49,6 +50,7 @@ class LaggingRouter:
             for agent, (generation, names) in self.agents.items()
         ]
         registry = p.RegistryReply(fleet="tiny", plan=self.plans[-1], history=list(self.plans))
+        self.answered = registry
         self.plans += self.arriving  # taken after this answer
         self.arriving = []
         return statuses, [registry]
@@ -86,3 +88,15 @@ def test_a_removed_robot_is_not_left_pending_by_the_last_plan(tmp_path):
 
     assert outcome.ok and not outcome.timed_out, outcome.view and outcome.view.robots
     assert outcome.view is not None and [row.name for row in outcome.view.robots] == ["robot1"]
+
+
+def test_down_returns_once_the_router_holds_its_empty_plan():
+    """Else a `fleet status` right after `fleet down` can show the last plan's robots as pending
+    (test_control_history.py saw the history without the down's plan, once in CI)."""
+    router = LaggingRouter(["robot1", "robot3"], generation=1)
+
+    replies = down(router, "tiny", timeout=5.0)  # type: ignore[arg-type]
+
+    assert list(replies) == ["hostA"] and replies["hostA"].accepted  # type: ignore[union-attr]
+    assert router.answered is not None and router.answered.plan is not None
+    assert router.answered.plan.robots == {}, "down returned before the router held its plan"
