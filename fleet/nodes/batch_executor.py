@@ -32,7 +32,6 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from rclpy.event_handler import EventHandler
-from rclpy.exceptions import InvalidHandle
 from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
@@ -142,10 +141,10 @@ class BatchExecutor:
     def _run(self, node: Any, call: Callable[[Any], None], entity: Any, on_error: ErrorHandler | None) -> None:
         if id(node) not in self._live:  # removed by an earlier callback of this batch (a fault)
             return
+        if self._stale and not _still_has(node, entity):  # destroyed by an earlier callback of this batch
+            return
         try:
             call(entity)
-        except InvalidHandle:
-            self._stale = True  # destroyed by an earlier callback of this batch: gone next wait
         except Exception as error:
             if on_error is None:
                 raise
@@ -204,6 +203,16 @@ class BatchExecutor:
         self._polled_wait_set = _rclpy.WaitSet(
             0, 0, 0, 0, len(self._handles["service"]), len(self._events), self._context.handle
         )
+
+
+def _still_has(node: Any, entity: Any) -> bool:
+    """`entity` is still one of `node`'s (rclpy drops an entity from these lists as it destroys it)."""
+    if node is None:
+        return False
+    return any(
+        entity in group
+        for group in (node.subscriptions, node.timers, node.services, node.clients, node.guards, node.waitables)
+    )
 
 
 def _finish(result: Any) -> None:

@@ -6,6 +6,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import pytest
 
@@ -157,3 +158,42 @@ def test_an_incompatible_qos_warning_still_comes(ros, batch):
         batch.spin_once(0.05)
     ros.probe.create_publisher(Int32, "numbers", QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
     spin_until(batch, lambda: events, "the incompatible QoS event")
+
+
+def test_a_callback_using_an_entity_it_destroyed_is_its_node_s_fault(ros, batch):
+    from std_msgs.msg import Int32
+
+    node = hosted(ros, batch, "careless")
+    publisher = node.create_publisher(Int32, "out", 10)
+
+    def publish_after_destroying() -> None:
+        node.destroy_publisher(publisher)
+        publisher.publish(Int32(data=1))
+
+    node.create_timer(0.01, publish_after_destroying)
+    failures: list[tuple[str, str]] = []
+
+    def on_error(failed, error: BaseException) -> None:
+        failures.append((failed.get_name(), type(error).__name__))
+        batch.remove_node(failed)
+
+    spin_until(batch, lambda: failures, "the fault reported", on_error=on_error)
+    assert failures == [("careless", "InvalidHandle")]
+
+
+def test_an_entity_destroyed_by_an_earlier_callback_of_the_batch_is_skipped(ros, batch):
+    node = hosted(ros, batch, "pruner")
+    ticks: list[str] = []
+    timers: dict[str, Any] = {}
+
+    def tick(name: str, other: str) -> None:
+        ticks.append(name)
+        if other in timers:
+            node.destroy_timer(timers.pop(other))
+
+    timers["a"] = node.create_timer(0.01, lambda: tick("a", "b"))
+    timers["b"] = node.create_timer(0.01, lambda: tick("b", "a"))
+    time.sleep(0.05)  # both due: one wait finds both ready, and the first to run destroys the other
+    failures: list[BaseException] = []
+    spin_until(batch, lambda: len(ticks) >= 5, "5 ticks of the timer left", on_error=lambda _, e: failures.append(e))
+    assert failures == [] and len(set(ticks)) == 1
