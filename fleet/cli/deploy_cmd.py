@@ -208,7 +208,10 @@ def diff(
     expansion = load_and_expand(spec, set_)
     with client(connect, zenoh_config) as control:
         statuses, registries = control.status(expansion.fleet)
-    rows = plan_diff(expansion, build_view(statuses, registries, time.time()))
+        deployed = {
+            bundle.name: bundle for state in control.desired_states(expansion.fleet) for bundle in state.bundles
+        }
+    rows = plan_diff(expansion, build_view(statuses, registries, time.time()), deployed)
     if json:
         print_json([asdict(row) for row in rows])
         return

@@ -66,6 +66,26 @@ class ControlClient:
                 continue  # another version of fleet on the same router: skip, don't crash
         return statuses, registries
 
+    def desired_states(self, fleet: str, timeout: float = STATUS_TIMEOUT) -> list[p.ApplyRequest]:
+        """The desired state the router keeps for each agent of `fleet`: what the last deploy sent."""
+        import zenoh
+
+        replies = self.session.get(
+            p.desired_key(fleet, "*"),
+            payload=p.encode(p.DesiredQuery()),
+            target=zenoh.QueryTarget.ALL,
+            consolidation=zenoh.ConsolidationMode.NONE,
+            timeout=timeout,
+        )
+        states = []
+        for reply in replies:
+            if reply.ok is not None:
+                try:
+                    states.append(p.decode(reply.ok.payload.to_bytes(), p.ApplyRequest))
+                except p.ProtocolError:
+                    continue  # another version of fleet on the same router: skip, don't crash
+        return states
+
     # -- requests to one agent ------------------------------------------------------------------
 
     def send_applies(

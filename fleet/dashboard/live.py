@@ -25,6 +25,7 @@ from typing import Any
 from fleet.client import ControlClient
 from fleet.errors import ControlError
 from fleet.plan import FleetView, RobotRow, build_view
+from fleet.plan.parameters import bundle_parameters
 from fleet.wire import protocol as p
 
 log = logging.getLogger("fleet.dashboard")
@@ -117,8 +118,6 @@ class LiveFleet:
     def deployed_parameters(self, fleet: str, robot: str) -> list[dict[str, Any]]:
         """The robot's parameters as deployed (its params files in the desired state the router
         keeps), with the live overrides its agent reports."""
-        import yaml
-
         row = self._row(fleet, robot)
         try:
             desired = self.client.request(
@@ -127,11 +126,7 @@ class LiveFleet:
         except ControlError:
             raise ControlError(f"the router keeps no deployed state of {robot} (see `fleet deploy`)") from None
         bundle = next((b for b in desired.bundles if b.name == robot), None)
-        values: dict[str, dict[str, Any]] = {}
-        for name, text in sorted(bundle.files.items()) if bundle else []:
-            if name.endswith(".params.yaml"):
-                for fqn, section in (yaml.safe_load(text) or {}).items():
-                    values.setdefault(fqn, {}).update((section or {}).get("ros__parameters", {}))
+        values = bundle_parameters(dict(bundle.files)) if bundle else {}
         rows = []
         for fqn, parameters in values.items():
             overrides = row.overrides.get(fqn, {})

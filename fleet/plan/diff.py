@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from fleet.plan.view import FleetView
+from fleet.plan.parameters import ParameterChange, parameter_changes
+from fleet.plan.view import FleetView, RobotRow
+from fleet.rules import PARAMS_SUFFIX
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
+    from fleet.expand.bundle import Bundle
     from fleet.expand.expansion import Expansion
 
 
@@ -18,11 +21,18 @@ class DiffRow:
     agent: str
     change: str  # start, stop, restart, hot-update, move, unchanged
     detail: str = ""
+    parameters: list[ParameterChange] = field(default_factory=list)  # of a restart or hot-update
 
 
-def diff(expansion: Expansion, view: FleetView) -> list[DiffRow]:
-    """What a deploy of `expansion` would change, robot by robot (live overrides shown as drift)."""
+SHOWN_CHANGES = 6  # parameter changes named in a row's detail; --json has them all
+
+
+def diff(expansion: Expansion, view: FleetView, deployed: dict[str, p.BundleMessage] | None = None) -> list[DiffRow]:
+    """What a deploy of `expansion` would change, robot by robot (live overrides shown as drift).
+    `deployed`: robot -> its bundle in the desired state the router keeps; where that is the
+    bundle its agent runs, a restart or hot-update names the parameters it changes."""
     current = {row.name: row for row in view.robots_of(expansion.fleet)}
+    deployed = deployed or {}
     rows = []
     for bundle in expansion.bundles:
         running = current.pop(bundle.name, None)
@@ -35,9 +45,9 @@ def diff(expansion: Expansion, view: FleetView) -> list[DiffRow]:
         elif running.agent != bundle.agent:
             rows.append(DiffRow(bundle.name, bundle.agent, "move", f"from agent {running.agent}"))
         elif running.digest != bundle.digest:
-            rows.append(DiffRow(bundle.name, bundle.agent, "restart", "launch description or parameters changed"))
+            rows.append(_changed(bundle, running, deployed.get(bundle.name), "restart"))
         elif running.hot_digest != hot:
-            rows.append(DiffRow(bundle.name, bundle.agent, "hot-update", ", ".join(sorted(bundle.hot_files))))
+            rows.append(_changed(bundle, running, deployed.get(bundle.name), "hot-update"))
         elif running.state == "offline":
             rows.append(DiffRow(bundle.name, bundle.agent, "unchanged", "agent offline"))
         else:
@@ -52,3 +62,30 @@ def diff(expansion: Expansion, view: FleetView) -> list[DiffRow]:
     for name, row in sorted(current.items()):
         rows.append(DiffRow(name, row.agent, "stop", "not in the spec any more"))
     return rows
+
+
+def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, change: str) -> DiffRow:
+    """A restart or hot-update row, naming what changed when `old` is the bundle that runs."""
+    generic = "launch description or parameters changed" if change == "restart" else ", ".join(sorted(bundle.hot_files))
+    if old is None or (old.digest, old.hot_digest) != (running.digest, running.hot_digest):
+        # the router's copy is not what runs (a deploy under way, or one the agent refused)
+        return DiffRow(bundle.name, bundle.agent, change, generic)
+    parameters = parameter_changes(dict(old.files), dict(bundle.files))
+    named = [str(one) for one in parameters[:SHOWN_CHANGES]]
+    if len(parameters) > SHOWN_CHANGES:
+        named.append(f"and {len(parameters) - SHOWN_CHANGES} more (--json)")
+    named += [
+        f"{name} {old.options.get(name)!r} -> {bundle.options.get(name)!r}"
+        for name in sorted(old.options.keys() | bundle.options.keys())
+        if old.options.get(name) != bundle.options.get(name)
+    ]
+    if old.entry != bundle.entry:
+        named.append(f"launch file {old.entry} -> {bundle.entry}")
+    others = sorted(
+        name
+        for name in old.files.keys() | bundle.files.keys()
+        if not name.endswith(PARAMS_SUFFIX) and old.files.get(name) != bundle.files.get(name)
+    )
+    if others:
+        named.append(f"{', '.join(others)} changed")
+    return DiffRow(bundle.name, bundle.agent, change, "; ".join(named) or generic, parameters)

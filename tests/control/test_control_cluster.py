@@ -99,8 +99,16 @@ def test_changing_one_robot_restarts_only_it(cluster):
     before = {row.name: row.pids for row in cluster.view("tiny").robots}
     diff = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--json", "--connect", cluster.endpoint)
     assert diff.returncode == 0, diff.stderr
-    changes = {row["robot"]: row["change"] for row in json.loads(diff.stdout)}
-    assert changes == {"robot1": "unchanged", "robot2": "restart", "robot3": "unchanged"}
+    rows = {row["robot"]: row for row in json.loads(diff.stdout)}
+    assert {name: row["change"] for name, row in rows.items()} == {
+        "robot1": "unchanged",
+        "robot2": "restart",
+        "robot3": "unchanged",
+    }
+    period = {"node": "/robot2/sleeper", "name": "period", "old": 1.0, "new": 2.0}
+    assert rows["robot2"]["parameters"] == [period] and rows["robot2"]["detail"] == "sleeper.period 1.0 -> 2.0"
+    table = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--connect", cluster.endpoint)
+    assert "sleeper.period 1.0 -> 2.0" in table.stdout, table.stdout
 
     outcome = cluster.deploy(spec, sets=["robot2.sleeper.period=2.0"])
     assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)

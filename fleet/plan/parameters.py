@@ -1,0 +1,69 @@
+"""The ROS parameters a bundle deploys, read from its params files, and how two bundles' differ (pure)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from fleet.errors import SpecError
+from fleet.rules import PARAMS_SUFFIX
+from fleet.spec.yaml_source import safe_load
+
+ParameterValues = dict[str, dict[str, Any]]  # node's name as in the file (its fqn) -> parameter -> value
+
+
+@dataclass(frozen=True)
+class ParameterChange:
+    node: str  # as its params file names it: /robot2/controller
+    name: str  # nested names joined with dots, as rcl names them: limits.max_speed
+    old: Any = None  # None: the parameter is new
+    new: Any = None  # None: the parameter is gone
+
+    def __str__(self) -> str:
+        where = f"{self.node.rsplit('/', 1)[-1]}.{self.name}"
+        if self.old is None:
+            return f"{where} = {self.new!r} (new)"
+        if self.new is None:
+            return f"{where} removed (was {self.old!r})"
+        return f"{where} {self.old!r} -> {self.new!r}"
+
+
+def bundle_parameters(files: dict[str, str]) -> ParameterValues:
+    """Every node's parameters in the bundle's params files (a later file's value wins, as in a
+    launch that passes them in order).  A file that is not valid YAML adds nothing: it came from
+    fleet's own expansion, and the agent is the one to refuse it."""
+    values: ParameterValues = {}
+    for name, text in sorted(files.items()):
+        if not name.endswith(PARAMS_SUFFIX):
+            continue
+        try:
+            data = safe_load(text, name)  # from a message: with the limits of every input
+        except SpecError:
+            continue
+        for node, section in (data or {}).items() if isinstance(data, dict) else ():
+            parameters = section.get("ros__parameters") if isinstance(section, dict) else None
+            if isinstance(parameters, dict):
+                values.setdefault(str(node), {}).update(_flattened(parameters))
+    return values
+
+
+def parameter_changes(old_files: dict[str, str], new_files: dict[str, str]) -> list[ParameterChange]:
+    """What changes, parameter by parameter, from one bundle's params files to another's."""
+    old, new = bundle_parameters(old_files), bundle_parameters(new_files)
+    changes = []
+    for node in sorted(old.keys() | new.keys()):
+        before, after = old.get(node, {}), new.get(node, {})
+        for name in sorted(before.keys() | after.keys()):
+            if before.get(name) != after.get(name) or (name in before) != (name in after):
+                changes.append(ParameterChange(node, name, before.get(name), after.get(name)))
+    return changes
+
+
+def _flattened(parameters: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in parameters.items():
+        if isinstance(value, dict):
+            flat.update(_flattened(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat

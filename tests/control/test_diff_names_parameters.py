@@ -1,0 +1,95 @@
+"""`fleet diff` names the parameters a deploy changes, from the bundle the router keeps of what
+runs (pure: an Expansion of the test fleet, status replies built here)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fleet.expand import expand_fleet
+from fleet.plan import build_view, diff, requests_for
+from fleet.plan.parameters import ParameterChange, bundle_parameters, parameter_changes
+from fleet.spec import load_spec
+from fleet.wire import protocol as p
+
+TINY = Path(__file__).parent / "data" / "tiny.yaml"
+
+OLD = """/r/controller:
+  ros__parameters:
+    max_speed: 0.5
+    limits: {turn: 1.0, accel: 2.0}
+    gone: true
+"""
+NEW = """# a comment changes nothing
+/r/controller:
+  ros__parameters:
+    max_speed: 0.8
+    limits: {turn: 1.0, accel: 3.0}
+    added: [1, 2]
+/r/battery:
+  ros__parameters: {capacity: 40.0}
+"""
+
+
+def test_parameters_are_read_from_params_files_only_with_nested_names_dotted():
+    files = {"r.params.yaml": OLD, "r.launch.yaml": "launch: []\n", "notes.params.yaml": "{not yaml"}
+    assert bundle_parameters(files) == {
+        "/r/controller": {"max_speed": 0.5, "limits.turn": 1.0, "limits.accel": 2.0, "gone": True}
+    }
+
+
+def test_each_changed_added_and_removed_parameter_is_named():
+    changes = parameter_changes({"r.params.yaml": OLD}, {"r.params.yaml": NEW})
+    assert changes == [
+        ParameterChange("/r/battery", "capacity", None, 40.0),
+        ParameterChange("/r/controller", "added", None, [1, 2]),
+        ParameterChange("/r/controller", "gone", True, None),
+        ParameterChange("/r/controller", "limits.accel", 2.0, 3.0),
+        ParameterChange("/r/controller", "max_speed", 0.5, 0.8),
+    ]
+    assert [str(change) for change in changes[2:]] == [
+        "controller.gone removed (was True)",
+        "controller.limits.accel 2.0 -> 3.0",
+        "controller.max_speed 0.5 -> 0.8",
+    ]
+    assert parameter_changes({"r.params.yaml": OLD}, {"r.params.yaml": "# edited\n" + OLD}) == []
+
+
+def running(expansion, generation: int = 5) -> list[p.StatusReply]:
+    """Status replies of agents running every bundle of `expansion`."""
+    replies = []
+    for request in requests_for(expansion, generation, set()):
+        robots = [
+            p.RobotState(name=b.name, state="running", generation=generation, digest=b.digest, hot_digest=b.hot_digest)
+            for b in request.bundles
+        ]
+        info = p.AgentInfo(name=request.agent, hostname=request.agent, cores=2, pid=1, version="0", started_at=0.0)
+        replies.append(p.StatusReply(agent=info, fleet=expansion.fleet, time=0.0, generation=generation, robots=robots))
+    return replies
+
+
+def test_a_restart_names_the_parameter_it_changes():
+    before = expand_fleet(load_spec(TINY), [])
+    after = expand_fleet(load_spec(TINY), ["robot2.sleeper.period=2.0"])
+    deployed = {b.name: b for request in requests_for(before, 5, set()) for b in request.bundles}
+    view = build_view(running(before), [], 0.0)
+
+    rows = {row.robot: row for row in diff(after, view, deployed)}
+
+    assert {name: row.change for name, row in rows.items()} == {
+        "robot1": "unchanged",
+        "robot2": "restart",
+        "robot3": "unchanged",
+    }
+    assert rows["robot2"].parameters == [ParameterChange("/robot2/sleeper", "period", 1.0, 2.0)]
+    assert rows["robot2"].detail == "sleeper.period 1.0 -> 2.0"
+
+
+def test_without_the_bundle_that_runs_a_restart_says_only_that_something_changed():
+    before = expand_fleet(load_spec(TINY), [])
+    after = expand_fleet(load_spec(TINY), ["robot2.sleeper.period=2.0"])
+    elsewhere = expand_fleet(load_spec(TINY), ["robot2.sleeper.period=3.0"])  # the router's copy, not run
+    view = build_view(running(before), [], 0.0)
+
+    for deployed in ({}, {b.name: b for request in requests_for(elsewhere, 6, set()) for b in request.bundles}):
+        row = next(row for row in diff(after, view, deployed) if row.robot == "robot2")
+        assert (row.change, row.detail, row.parameters) == ("restart", "launch description or parameters changed", [])
