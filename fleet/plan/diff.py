@@ -24,6 +24,9 @@ class DiffRow:
     parameters: list[ParameterChange] = field(default_factory=list)  # of a restart or hot-update
 
 
+# What a deploy does with the values `fleet param set` gave a robot (the agent's apply decides:
+# a robot started anew gets the spec's values).
+OVERRIDES_FATE = {"unchanged": "kept", "hot-update": "kept", "restart": "dropped", "move": "dropped"}
 SHOWN_CHANGES = 6  # parameter changes named in a row's detail; --json has them all
 
 
@@ -52,13 +55,14 @@ def diff(expansion: Expansion, view: FleetView, deployed: dict[str, p.BundleMess
             rows.append(DiffRow(bundle.name, bundle.agent, "unchanged", "agent offline"))
         else:
             rows.append(DiffRow(bundle.name, bundle.agent, "unchanged"))
-        if running is not None and running.overrides and rows[-1].change in ("unchanged", "hot-update"):
+        if running is not None and running.overrides and rows[-1].change in OVERRIDES_FATE:
             drift = "; ".join(
                 f"{node} {name}={value!r}"
                 for node, values in sorted(running.overrides.items())
                 for name, value in sorted(values.items())
             )
-            rows[-1].detail = (rows[-1].detail + "; " if rows[-1].detail else "") + f"live overrides kept: {drift}"
+            fate = f"live overrides {OVERRIDES_FATE[rows[-1].change]}: {drift}"
+            rows[-1].detail = (rows[-1].detail + "; " if rows[-1].detail else "") + fate
     for name, row in sorted(current.items()):
         rows.append(DiffRow(name, row.agent, "stop", "not in the spec any more"))
     return rows

@@ -113,6 +113,12 @@ def test_live_parameter_set_is_checked_and_kept(two_robots):
     )
     row = next(r for r in json.loads(diff.stdout) if r["robot"] == "robot1")
     assert row["change"] == "unchanged" and "max_speed=0.7" in row["detail"]
+    restart = cluster.cli(
+        "diff", str(cluster.spec_file), "--set", "robot1.battery.capacity=40.0", "--json", "--connect", cluster.endpoint
+    )
+    row = next(r for r in json.loads(restart.stdout) if r["robot"] == "robot1")
+    assert row["change"] == "restart", row
+    assert row["detail"] == "battery.capacity 50.0 -> 40.0; live overrides dropped: /robot1/controller max_speed=0.7"
 
 
 def test_killed_agent_goes_offline_and_comes_back(two_robots):

@@ -54,12 +54,20 @@ def test_each_changed_added_and_removed_parameter_is_named():
     assert parameter_changes({"r.params.yaml": OLD}, {"r.params.yaml": "# edited\n" + OLD}) == []
 
 
-def running(expansion, generation: int = 5) -> list[p.StatusReply]:
-    """Status replies of agents running every bundle of `expansion`."""
+def running(expansion, generation: int = 5, overrides: dict | None = None) -> list[p.StatusReply]:
+    """Status replies of agents running every bundle of `expansion` (`overrides`: robot -> the
+    values `fleet param set` gave it)."""
     replies = []
     for request in requests_for(expansion, generation, set()):
         robots = [
-            p.RobotState(name=b.name, state="running", generation=generation, digest=b.digest, hot_digest=b.hot_digest)
+            p.RobotState(
+                name=b.name,
+                state="running",
+                generation=generation,
+                digest=b.digest,
+                hot_digest=b.hot_digest,
+                overrides=(overrides or {}).get(b.name, {}),
+            )
             for b in request.bundles
         ]
         info = p.AgentInfo(name=request.agent, hostname=request.agent, cores=2, pid=1, version="0", started_at=0.0)
@@ -93,3 +101,16 @@ def test_without_the_bundle_that_runs_a_restart_says_only_that_something_changed
     for deployed in ({}, {b.name: b for request in requests_for(elsewhere, 6, set()) for b in request.bundles}):
         row = next(row for row in diff(after, view, deployed) if row.robot == "robot2")
         assert (row.change, row.detail, row.parameters) == ("restart", "launch description or parameters changed", [])
+
+
+def test_live_overrides_are_said_to_be_kept_or_dropped_as_the_agent_will():
+    before = expand_fleet(load_spec(TINY), [])
+    after = expand_fleet(load_spec(TINY), ["robot2.sleeper.period=2.0"])
+    deployed = {b.name: b for request in requests_for(before, 5, set()) for b in request.bundles}
+    overrides = {name: {f"/{name}/sleeper": {"period": 0.5}} for name in ("robot2", "robot3")}
+    view = build_view(running(before, overrides=overrides), [], 0.0)
+
+    rows = {row.robot: row for row in diff(after, view, deployed)}
+
+    assert rows["robot2"].detail == "sleeper.period 1.0 -> 2.0; live overrides dropped: /robot2/sleeper period=0.5"
+    assert rows["robot3"].detail == "live overrides kept: /robot3/sleeper period=0.5"
