@@ -19,10 +19,11 @@ def status(agent: str, robots: list[p.RobotState], world: p.WorldSummary | None 
     return p.StatusReply(agent=info, fleet="f", time=0.0, generation=1, robots=robots, world=world)
 
 
-def unit(name: str, uptime: float = OLD, state: p.RobotStateName = "running") -> p.RobotState:
+def unit(name: str, *uptimes: float, state: p.RobotStateName = "running") -> p.RobotState:
+    """A unit whose nodes have run `uptimes` seconds each (one node, long running, by default)."""
     kind: Literal["robot", "world"] = "world" if name == "world" else "robot"
-    nodes = [p.NodeState(name="n", state=state, pid=10, uptime=uptime)]
-    return p.RobotState(name=name, kind=kind, state=state, nodes=nodes, running=1, total=1)
+    nodes = [p.NodeState(name=f"n{i}", state=state, pid=10 + i, uptime=u) for i, u in enumerate(uptimes or (OLD,))]
+    return p.RobotState(name=name, kind=kind, state=state, nodes=nodes, running=len(nodes), total=len(nodes))
 
 
 def world(age: float = 0.2, **robots: dict) -> p.WorldSummary:
@@ -69,7 +70,7 @@ def test_a_robot_cut_off_from_the_world_is_degraded(flow, reason):
 def test_a_robot_just_started_without_data_yet_is_starting_not_degraded():
     got = rows(
         status("sim", [unit("world")], world(r1={"cmd_age": None, "odom_subscribers": 0})),
-        status("rack", [unit("r1", uptime=1.0)]),
+        status("rack", [unit("r1", 1.0)]),
     )
     assert got["r1"][0] == "starting" and got["r1"][1].startswith("waiting for data")
 
@@ -79,27 +80,22 @@ def test_a_robot_whose_data_flowed_is_degraded_when_it_stops_even_just_after_sta
     assert WORLD_SILENT + 6 < STARTUP_GRACE
     got = rows(
         status("sim", [unit("world")], world(age=WORLD_SILENT + 2, r1=FLOWING)),
-        status("rack", [unit("r1", uptime=WORLD_SILENT + 6)]),
+        status("rack", [unit("r1", WORLD_SILENT + 6)]),
     )
     assert got["r1"][0] == "degraded"
 
 
-def restarted(name: str, *uptimes: float) -> p.RobotState:
-    nodes = [p.NodeState(name=f"n{i}", state="running", pid=10 + i, uptime=u) for i, u in enumerate(uptimes)]
-    return p.RobotState(name=name, kind="robot", state="running", nodes=nodes, running=len(nodes), total=len(nodes))
-
-
 def test_a_restarted_robot_is_not_running_on_its_old_processes_commands():
     # The world heard r1 0.1 s before its report, written 1.5 s ago; r1's nodes started 1 s ago.
-    got = rows(status("sim", [unit("world")], world(age=1.5, r1=FLOWING)), status("rack", [restarted("r1", 1.0, 0.9)]))
+    got = rows(status("sim", [unit("world")], world(age=1.5, r1=FLOWING)), status("rack", [unit("r1", 1.0, 0.9)]))
     assert got["r1"] == ("starting", "waiting for data: no cmd_vel from its new nodes has reached the world yet")
     # Once the world reports a command received after they started, it runs.
-    got = rows(status("sim", [unit("world")], world(age=0.2, r1=FLOWING)), status("rack", [restarted("r1", 1.0, 0.9)]))
+    got = rows(status("sim", [unit("world")], world(age=0.2, r1=FLOWING)), status("rack", [unit("r1", 1.0, 0.9)]))
     assert got["r1"] == ("running", "")
 
 
 def test_one_respawned_node_leaves_a_robot_running_on_the_others_commands():
-    got = rows(status("sim", [unit("world")], world(age=0.4, r1=FLOWING)), status("rack", [restarted("r1", OLD, 0.2)]))
+    got = rows(status("sim", [unit("world")], world(age=0.4, r1=FLOWING)), status("rack", [unit("r1", OLD, 0.2)]))
     assert got["r1"] == ("running", "")
 
 
@@ -114,7 +110,7 @@ def test_a_world_that_never_reports_is_degraded_and_so_are_its_robots():
     got = rows(status("sim", [unit("world")]), status("rack", [unit("r1")]))
     assert got["world"] == ("degraded", "it has not reported its state (see `fleet logs world`)")
     assert got["r1"] == ("degraded", "the world has not reported yet")
-    young = rows(status("sim", [unit("world", uptime=2.0)]), status("rack", [unit("r1", uptime=2.0)]))
+    young = rows(status("sim", [unit("world", 2.0)]), status("rack", [unit("r1", 2.0)]))
     assert young["world"][0] == "starting" and young["r1"][0] == "starting"
 
 
@@ -273,7 +269,7 @@ def test_ros_tools_get_the_fleets_domain_and_discovery_server():
 @pytest.mark.parametrize("order", [1, -1], ids=["new agent first", "old agent first"])
 def test_a_robot_moving_between_agents_is_shown_on_the_agent_the_plan_puts_it_on(order):
     # Its old agent may still report it while stopping it; Zenoh delivers the replies in any order.
-    replies = [status("hostA", [unit("r3", uptime=1.0)]), status("hostB", [unit("r3", state="stopped")])][::order]
+    replies = [status("hostA", [unit("r3", 1.0)]), status("hostB", [unit("r3", state="stopped")])][::order]
     plan = p.PlanRecord(fleet="f", generation=2, robots={"r3": "hostA"}, deployed_at=0.0)
     view = build_view(replies, [p.RegistryReply(fleet="f", plan=plan)], now=100.0)
     assert [(row.name, row.agent) for row in view.robots] == [("r3", "hostA")]
