@@ -29,9 +29,9 @@ class ParameterChange:
 
 
 def bundle_parameters(files: dict[str, str]) -> ParameterValues:
-    """Every node's parameters in the bundle's params files (a later file's value wins, as in a
-    launch that passes them in order).  A file that is not valid YAML adds nothing: it came from
-    fleet's own expansion, and the agent is the one to refuse it."""
+    """Every node's parameters in the bundle's params files (fleet writes one per robot; several
+    are merged in name order).  A file that is not valid YAML adds nothing: it came from fleet's
+    own expansion, and the agent is the one to refuse it."""
     values: ParameterValues = {}
     for name, text in sorted(files.items()):
         if not name.endswith(PARAMS_SUFFIX):
@@ -40,7 +40,7 @@ def bundle_parameters(files: dict[str, str]) -> ParameterValues:
             data = safe_load(text, name)  # from a message: with the limits of every input
         except SpecError:
             continue
-        for node, section in (data or {}).items() if isinstance(data, dict) else ():
+        for node, section in data.items() if isinstance(data, dict) else ():
             parameters = section.get("ros__parameters") if isinstance(section, dict) else None
             if isinstance(parameters, dict):
                 values.setdefault(str(node), {}).update(_flattened(parameters))
