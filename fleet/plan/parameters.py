@@ -7,7 +7,6 @@ from typing import Any
 
 from fleet.errors import SpecError
 from fleet.rules import PARAMS_SUFFIX
-from fleet.spec.yaml_source import safe_load
 
 ParameterValues = dict[str, dict[str, Any]]  # node's name as in the file (its fqn) -> parameter -> value
 
@@ -32,6 +31,9 @@ def bundle_parameters(files: dict[str, str]) -> ParameterValues:
     """Every node's parameters in the bundle's params files (fleet writes one per robot; several
     are merged in name order).  A file that is not valid YAML adds nothing: it came from fleet's
     own expansion, and the agent is the one to refuse it."""
+    # Imported here: fleet.plan is on `fleet status`'s path, which reads no YAML.
+    from fleet.spec.yaml_source import safe_load
+
     values: ParameterValues = {}
     for name, text in sorted(files.items()):
         if not name.endswith(PARAMS_SUFFIX):
