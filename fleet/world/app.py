@@ -33,6 +33,7 @@ from fleet.world.status import (
     last_sim_time,
     model_dict,
     obstacle_dict,
+    pose_dict,
     read_status,
     write_status,
 )
@@ -117,7 +118,7 @@ class WorldApp:
         if previous is not None and previous.get("fleet") != self.spec.fleet:
             previous = None  # another fleet's file: start afresh
         self.physics.sim_time = resume_time(previous)
-        restored = last_poses(previous)
+        restored = last_poses(previous, {robot.name: robot.pose for robot in self.spec.robots})
         for robot in self.spec.robots:
             self._spawn(robot, restored.get(robot.name))
 
@@ -229,7 +230,12 @@ class WorldApp:
             current = self.robots.get(name)
             if current is None:
                 self._spawn(robot_spec)
-            elif not current.spec.same_except_pose(robot_spec):
+            elif current.spec.pose != robot_spec.pose:
+                # Given a new spawn pose: put it there, as a restart would (its odom starts there).
+                log.info("robot '%s' has a new spawn pose: respawning it there", name)
+                self._despawn(name)
+                self._spawn(robot_spec)
+            elif current.spec != robot_spec:
                 # A changed model, lidar or rate: rebuild the robot where it stands now.
                 x, y, yaw = self.physics.robots[name].pose()
                 self._despawn(name)
@@ -371,6 +377,7 @@ class WorldApp:
             x, y, yaw = poses[i]
             robots[name] = {
                 "pose": {"x": round(x, 4), "y": round(y, 4), "yaw": round(yaw, 4)},
+                "spawn": pose_dict(robot.spec.pose),  # unrounded: compared with world.yaml's at a restart
                 "velocity": {"linear": round(robot.velocity[0], 4), "angular": round(robot.velocity[1], 4)},
                 "battery": inputs.battery_of(i) if ros else None,
                 "model": robot.model,

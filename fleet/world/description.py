@@ -227,10 +227,6 @@ class RobotSpec(_FromYaml):
             data = {**data, "namespace": f"/{data['name']}"}
         return data
 
-    def same_except_pose(self, other: RobotSpec) -> bool:
-        """True when a reload changed nothing but the initial pose (which only matters at spawn)."""
-        return self == RobotSpec(**{**other.__dict__, "pose": self.pose})
-
 
 @dataclass(frozen=True)
 class ObstacleSpec:

@@ -4,7 +4,8 @@ The document is plain JSON data; the agent running the world serves it as is ove
 plane (fleet.wire.protocol.WorldDocument validates it) and cuts it down for status replies:
 
     {"fleet", "sim_time", "wall_time", "real_time_factor", "physics_rate",
-     "robots": {name: {"pose": {"x", "y", "yaw"}, "velocity": {"linear", "angular"},
+     "robots": {name: {"pose": {"x", "y", "yaw"}, "spawn": {"x", "y", "yaw"} (its pose in world.yaml),
+                       "velocity": {"linear", "angular"},
                        "battery": fraction 0..1 or null, "model": {"type", "radius" | "length", "width"},
                        "trail": [[x, y], ...], "scan_hits": [[x, y], ...],
                        "cmd_age": s since its last cmd_vel or null, "odom_subscribers": n}},
@@ -113,16 +114,26 @@ def last_sim_time(status: dict[str, Any] | None) -> float:
     return float(value)
 
 
-def last_poses(status: dict[str, Any] | None) -> dict[str, Pose2D]:
-    """Robot poses reported in a status document (bad entries skipped)."""
+def pose_dict(pose: Pose2D) -> dict[str, float]:
+    return {"x": pose.x, "y": pose.y, "yaw": pose.yaw}
+
+
+def last_poses(status: dict[str, Any] | None, spawn: dict[str, Pose2D]) -> dict[str, Pose2D]:
+    """Robot poses reported in a status document, for the robots whose spawn pose then was
+    `spawn[name]`: one given a new spawn pose since starts there (bad entries skipped)."""
     poses: dict[str, Pose2D] = {}
     robots = (status or {}).get("robots")
     if not isinstance(robots, dict):
         return poses
     for name, entry in robots.items():
         try:
-            pose = entry["pose"]
-            poses[name] = Pose2D(float(pose["x"]), float(pose["y"]), float(pose["yaw"]))
+            if name in spawn and "spawn" in entry and _pose(entry["spawn"]) != spawn[name]:
+                continue
+            poses[name] = _pose(entry["pose"])
         except (KeyError, TypeError, ValueError):
             continue
     return poses
+
+
+def _pose(entry: Any) -> Pose2D:
+    return Pose2D(float(entry["x"]), float(entry["y"]), float(entry["yaw"]))

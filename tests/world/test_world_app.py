@@ -160,3 +160,39 @@ def test_command_times_out_in_both_sim_and_wall_time(monkeypatch):
     assert current(10.3) == [0.4, 0.1]  # old in wall time, fresh in sim (slow world)
     assert current(10.6) == [0.0, 0.0]
     assert inputs.live_commands(timeouts, 10.0).tolist()[1] == [0.0, 0.0]  # robot 1: never commanded
+
+
+def test_a_new_spawn_pose_moves_the_robot_there_at_a_reload_and_at_a_restart(files):
+    config, status_file = files
+    app = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        app.physics.command("robot1", 0.5, 0.0)
+        app.run(sim_duration=0.5)
+        robot1 = app.physics.robots["robot1"].pose()
+        write(config, BASE.replace("{x: 1.0, y: 0.0, yaw: 1.57}", "{x: -1.5, y: -1.0, yaw: 0.0}"))
+        app.check_reload()
+        assert app.physics.robots["robot2"].pose() == pytest.approx((-1.5, -1.0, 0.0), abs=1e-6)
+        assert app.physics.robots["robot1"].pose() == robot1  # the other one was not disturbed
+        app.physics.command("robot1", 0.5, 0.0)
+        app.run(sim_duration=0.5)  # writes a final status
+    finally:
+        app.close()
+    status = json.loads(status_file.read_text())
+    assert status["robots"]["robot2"]["spawn"] == {"x": -1.5, "y": -1.0, "yaw": 0.0}
+
+    # Stopped, then started with robot1 given a new spawn pose: robot1 starts there, robot2 where it was.
+    write(
+        config,
+        BASE.replace("{x: 1.0, y: 0.0, yaw: 1.57}", "{x: -1.5, y: -1.0, yaw: 0.0}").replace(
+            "{x: 0.0, y: 0.0}", "{x: 0.5, y: -2.0}"
+        ),
+    )
+    again = WorldApp(config, status_file, as_fast_as_possible=True)
+    try:
+        assert again.physics.robots["robot1"].pose() == pytest.approx((0.5, -2.0, 0.0), abs=1e-6)
+        robot2 = status["robots"]["robot2"]["pose"]
+        assert again.physics.robots["robot2"].pose() == pytest.approx(
+            (robot2["x"], robot2["y"], robot2["yaw"]), abs=1e-3
+        )
+    finally:
+        again.close()
