@@ -12,6 +12,9 @@ the other isolations (fleet.nodes.common.run) spin with it.  It
   is added or removed or a node creates or destroys an entity (rclpy then calls `wake`);
 - after a wait, runs every callback found ready, taking every message or request queued at a
   ready subscription or service, then waits again;
+- waits on one of the /clock subscriptions that rclpy makes for every node on sim time, and
+  hands each message it takes to every node's time source: a host of 25 robots would otherwise
+  take and convert the same message 75 times, 100 times a second;
 - looks at the nodes' services (parameter services: 21 of a robot's 35 entities, seldom called)
   and QoS event handlers (incompatible QoS or type: warnings for the logs) in a wait set of their
   own, without waiting, POLL_PERIOD apart, rather than at every wait: the cost of a wait grows
@@ -35,6 +38,7 @@ from rclpy.event_handler import EventHandler
 from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
+from rclpy.time_source import TimeSource
 from rclpy.utilities import get_default_context
 from rclpy.waitable import NumberOfEntities
 
@@ -60,6 +64,7 @@ class BatchExecutor:
         self._entities: dict[str, dict[int, tuple[Any, Any]]] = {}  # kind -> pointer -> (entity, node)
         self._waitables: list[tuple[Any, Any]] = []  # (waitable, node), other than QoS events
         self._events: list[tuple[Any, Any]] = []  # (QoS event handler, node)
+        self._clocks: list[tuple[Any, Any]] = []  # (a TimeSource's /clock subscription, node)
 
     # -- the nodes --
 
@@ -130,7 +135,11 @@ class BatchExecutor:
             entities = self._entities[kind]
             for pointer in wait_set.get_ready_entities(kind):
                 found = entities.get(pointer)
-                if found is not None:
+                if found is None:
+                    continue
+                if kind == "subscription" and self._clocks and found[0] is self._clocks[0][0]:
+                    self._share_clock(on_error)
+                else:
                     self._run(found[1], _CALLS[kind], found[0], on_error)
         for waitable, node in self._waitables:
             if waitable.is_ready(wait_set):
@@ -149,6 +158,22 @@ class BatchExecutor:
             if on_error is None:
                 raise
             on_error(node, error)
+
+    def _share_clock(self, on_error: ErrorHandler | None) -> None:
+        """The latest /clock message, taken from the one clock subscription waited on, to every
+        node's time source.  The others' readers are never taken from: DDS keeps only their
+        latest message (depth 1), so whichever is waited on next after a node leaves holds the
+        current time, not an old one."""
+        reader, reader_node = self._clocks[0]
+        if id(reader_node) not in self._live or (self._stale and not _still_has(reader_node, reader)):
+            return  # its node left in this batch (a fault): the next wait is on another's
+        latest = None
+        while (taken := reader.handle.take_message(reader.msg_type, reader.raw)) is not None:
+            latest = taken[0]
+        if latest is None:
+            return
+        for subscription, node in list(self._clocks):
+            self._run(node, lambda s: _finish(s.callback(latest)), subscription, on_error)
 
     def _poll(self, on_error: ErrorHandler | None) -> None:
         """Serve the services' queued requests and the QoS events that came, without waiting."""
@@ -174,8 +199,11 @@ class BatchExecutor:
 
     def _gather(self) -> None:
         self._stale = False
+        subscriptions = [(s, node) for node in self._nodes for s in node.subscriptions]
+        self._clocks = [(s, node) for s, node in subscriptions if _is_clock_of_time_source(s)]
         members: dict[str, Iterable[tuple[Any, Any]]] = {
-            "subscription": [(s, node) for node in self._nodes for s in node.subscriptions],
+            "subscription": [(s, node) for s, node in subscriptions if not _is_clock_of_time_source(s)]
+            + self._clocks[:1],
             "timer": [(t, node) for node in self._nodes for t in node.timers],
             "service": [(s, node) for node in self._nodes for s in node.services],
             "client": [(c, node) for node in self._nodes for c in node.clients],
@@ -203,6 +231,11 @@ class BatchExecutor:
         self._polled_wait_set = _rclpy.WaitSet(
             0, 0, 0, 0, len(self._handles["service"]), len(self._events), self._context.handle
         )
+
+
+def _is_clock_of_time_source(subscription: Any) -> bool:
+    """The /clock subscription rclpy's TimeSource makes for a node on sim time."""
+    return getattr(subscription.callback, "__func__", None) is TimeSource.clock_callback
 
 
 def _still_has(node: Any, entity: Any) -> bool:

@@ -197,3 +197,83 @@ def test_an_entity_destroyed_by_an_earlier_callback_of_the_batch_is_skipped(ros,
     failures: list[BaseException] = []
     spin_until(batch, lambda: len(ticks) >= 5, "5 ticks of the timer left", on_error=lambda _, e: failures.append(e))
     assert failures == [] and len(set(ticks)) == 1
+
+
+def sim_time_nodes(ros, batch: BatchExecutor, *names: str) -> list:
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    nodes = []
+    for name in names:
+        node = rclpy.create_node(name, context=ros.context, parameter_overrides=[Parameter("use_sim_time", value=True)])
+        ros.nodes.append(node)
+        batch.add_node(node)
+        nodes.append(node)
+    return nodes
+
+
+def clock_publisher(ros):
+    """publishing(at, nodes): a check, true once every node's clock reads `at` seconds, that
+    publishes that time on /clock again until then."""
+    from rosgraph_msgs.msg import Clock
+
+    clock = ros.probe.create_publisher(Clock, "/clock", 10)
+
+    def publishing(at: int, nodes_now: list):
+        def check() -> bool:
+            if all(node.get_clock().now().nanoseconds == at * 10**9 for node in nodes_now):
+                return True
+            message = Clock()
+            message.clock.sec = at
+            clock.publish(message)
+            return False
+
+        return check
+
+    return publishing
+
+
+def test_every_node_on_sim_time_follows_clock_and_never_goes_back_when_the_reader_s_node_leaves(ros, batch):
+    nodes = sim_time_nodes(ros, batch, "a", "b", "c")
+    publishing = clock_publisher(ros)
+    spin_until(batch, publishing(100, nodes), "every node's clock at /clock's time")
+    spin_until(batch, publishing(101, nodes), "every node's clock at the next /clock")
+
+    # The node whose subscription the executor waited on leaves: the others go on, forward only.
+    first = nodes.pop(0)
+    batch.remove_node(first)
+    first.destroy_node()
+    ros.nodes.remove(first)
+    check, seen = publishing(102, nodes), []
+
+    def forward() -> bool:
+        seen.append(nodes[0].get_clock().now().nanoseconds)
+        return check()
+
+    spin_until(batch, forward, "the others' clocks at /clock after the reader's node left")
+    assert seen == sorted(seen)
+
+
+def test_a_fault_of_the_node_whose_clock_is_read_leaves_the_others_on_time(ros, batch):
+    from rclpy.clock import Clock, ClockType
+
+    reader, other = sim_time_nodes(ros, batch, "reader", "other")
+    publishing = clock_publisher(ros)
+    spin_until(batch, publishing(100, [reader, other]), "both clocks at /clock's time")
+
+    def fail() -> None:
+        raise RuntimeError("broken sensor")
+
+    reader.create_timer(0.01, fail, clock=Clock(clock_type=ClockType.STEADY_TIME))
+    batch.spin_once(0.0)  # the timer joins the wait set
+    publishing(101, [other])()
+    time.sleep(0.05)  # the timer is due and the clock message is in: one batch has both
+    failures: list[str] = []
+
+    def on_error(node, error: BaseException) -> None:  # as the host does: that robot's nodes go
+        failures.append(node.get_name())
+        batch.remove_node(node)
+        node.destroy_node()
+
+    spin_until(batch, publishing(101, [other]), "the other clock at the next /clock", on_error=on_error)
+    assert failures == ["reader"]
