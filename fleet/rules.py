@@ -50,7 +50,9 @@ LAUNCH_SUFFIX = ".launch.yaml"  # the launch file a unit runs (its entry)
 PYTHON_LAUNCH_SUFFIX = ".launch.py"  # the same description as a Python launch file
 PARAMS_SUFFIX = ".params.yaml"  # a robot's ROS parameters; beside a template: its defaults
 TEMPLATE_SUFFIX = ".launch.yaml.j2"
-# Written by the world unit next to its world.yaml (templates/world.launch.yaml.j2).
+# The world unit's description of its world (fleet/world/description.py reads it; the world
+# re-reads it as it changes), and its status file beside it (templates/world.launch.yaml.j2).
+WORLD_DESCRIPTION = "world.yaml"
 WORLD_STATUS_FILE = "world.status.json"
 
 # ---------------------------------------------------------------------------------------------

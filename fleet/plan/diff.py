@@ -7,12 +7,13 @@ from typing import TYPE_CHECKING
 
 from fleet.plan.parameters import ParameterChange, parameter_changes
 from fleet.plan.view import FleetView, RobotRow
-from fleet.rules import PARAMS_SUFFIX
+from fleet.rules import PARAMS_SUFFIX, WORLD_DESCRIPTION
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
     from fleet.expand.bundle import Bundle
     from fleet.expand.expansion import Expansion
+    from fleet.world.description import Pose2D
 
 
 @dataclass
@@ -85,11 +86,54 @@ def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, cha
     ]
     if old.entry != bundle.entry:
         named.append(f"launch file {old.entry} -> {bundle.entry}")
+    read = {name for name in old.files.keys() | bundle.files.keys() if name.endswith(PARAMS_SUFFIX)}
+    if bundle.kind == "world" and old.files.get(WORLD_DESCRIPTION) != bundle.files.get(WORLD_DESCRIPTION):
+        world = _world_changes(old.files.get(WORLD_DESCRIPTION, ""), bundle.files.get(WORLD_DESCRIPTION, ""))
+        if world is not None:
+            named += world
+            read.add(WORLD_DESCRIPTION)
     others = sorted(
         name
         for name in old.files.keys() | bundle.files.keys()
-        if not name.endswith(PARAMS_SUFFIX) and old.files.get(name) != bundle.files.get(name)
+        if name not in read and old.files.get(name) != bundle.files.get(name)
     )
     if others:
         named.append(f"{', '.join(others)} changed")
     return DiffRow(bundle.name, bundle.agent, change, "; ".join(named) or generic, parameters)
+
+
+def _world_changes(old_text: str, new_text: str) -> list[str] | None:
+    """What a new world description does to the running world, in its words (None: one of the
+    two does not parse, and the row just names the file)."""
+    # Imported here: the world's reader brings pydantic models and YAML, off `fleet status`'s path.
+    from fleet.world.description import WorldError, parse_world
+
+    try:
+        old, new = parse_world(old_text), parse_world(new_text)
+    except WorldError:
+        return None
+    changes = []
+    before, after = {r.name: r for r in old.robots}, {r.name: r for r in new.robots}
+    for name in sorted(before.keys() | after.keys()):
+        if name not in before:
+            changes.append(f"{name} joins at {_at(after[name].pose)}")
+        elif name not in after:
+            changes.append(f"{name} leaves")
+        elif (change := before[name].reload_change(after[name])) == "respawn":
+            changes.append(f"{name} respawns at {_at(after[name].pose)}")
+        elif change == "rebuild":
+            changes.append(f"{name} rebuilt where it stands")
+    was, now = {o.name: o for o in old.obstacles}, {o.name: o for o in new.obstacles}
+    for name in sorted(was.keys() | now.keys()):
+        if was.get(name) != now.get(name):
+            what = "added" if name not in was else "removed" if name not in now else "changed"
+            changes.append(f"obstacle {name} {what}")
+    for setting in ("physics_rate", "real_time", "clock_rate"):
+        if getattr(old, setting) != getattr(new, setting):
+            when = " (at the world's next restart)" if setting == "physics_rate" else ""
+            changes.append(f"{setting} {getattr(old, setting)!r} -> {getattr(new, setting)!r}{when}")
+    return changes
+
+
+def _at(pose: Pose2D) -> str:
+    return f"({pose.x:g}, {pose.y:g}, yaw {pose.yaw:g})"

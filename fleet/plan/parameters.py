@@ -32,6 +32,7 @@ def bundle_parameters(files: dict[str, str]) -> ParameterValues:
     are merged in name order).  A file that is not valid YAML adds nothing: it came from fleet's
     own expansion, and the agent is the one to refuse it."""
     # Imported here: fleet.plan is on `fleet status`'s path, which reads no YAML.
+    from fleet.spec.params import ParameterNameClash, flatten
     from fleet.spec.yaml_source import safe_load
 
     values: ParameterValues = {}
@@ -44,8 +45,13 @@ def bundle_parameters(files: dict[str, str]) -> ParameterValues:
             continue
         for node, section in data.items() if isinstance(data, dict) else ():
             parameters = section.get("ros__parameters") if isinstance(section, dict) else None
-            if isinstance(parameters, dict):
-                values.setdefault(str(node), {}).update(_flattened(parameters))
+            if not isinstance(parameters, dict):
+                continue
+            try:
+                flat = flatten(parameters)
+            except ParameterNameClash:  # as above: not fleet's to refuse here
+                continue
+            values.setdefault(str(node), {}).update((name, value) for name, (_, value) in flat.items())
     return values
 
 
@@ -59,13 +65,3 @@ def parameter_changes(old_files: dict[str, str], new_files: dict[str, str]) -> l
             if before.get(name) != after.get(name) or (name in before) != (name in after):
                 changes.append(ParameterChange(node, name, before.get(name), after.get(name)))
     return changes
-
-
-def _flattened(parameters: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    flat: dict[str, Any] = {}
-    for key, value in parameters.items():
-        if isinstance(value, dict):
-            flat.update(_flattened(value, f"{prefix}{key}."))
-        else:
-            flat[f"{prefix}{key}"] = value
-    return flat

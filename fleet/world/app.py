@@ -230,13 +230,13 @@ class WorldApp:
             current = self.robots.get(name)
             if current is None:
                 self._spawn(robot_spec)
-            elif current.spec.pose != robot_spec.pose:
-                # Given a new spawn pose: put it there, as a restart would (its odom starts there).
+                continue
+            change = current.spec.reload_change(robot_spec)
+            if change == "respawn":
                 log.info("robot '%s' has a new spawn pose: respawning it there", name)
                 self._despawn(name)
                 self._spawn(robot_spec)
-            elif current.spec != robot_spec:
-                # A changed model, lidar or rate: rebuild the robot where it stands now.
+            elif change == "rebuild":
                 x, y, yaw = self.physics.robots[name].pose()
                 self._despawn(name)
                 self._spawn(robot_spec, Pose2D(x, y, yaw))

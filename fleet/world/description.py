@@ -220,6 +220,14 @@ class RobotSpec(_FromYaml):
     cmd_timeout: Annotated[Number, Field(gt=0, le=3600.0)] = 0.5
     ground_truth: StrictBool = False
 
+    def reload_change(self, new: RobotSpec) -> str | None:
+        """What the world does when a reload turns this robot into `new`: "respawn" it at its new
+        spawn pose (its odom starts there, as after a restart), "rebuild" it where it stands
+        (another model, lidar or rate), or nothing."""
+        if new.pose != self.pose:
+            return "respawn"
+        return "rebuild" if new != self else None
+
     @model_validator(mode="before")
     @classmethod
     def _namespace_of_name(cls, data: Any) -> Any:

@@ -5,11 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
+
 from fleet.expand import expand_fleet
 from fleet.plan import build_view, diff, requests_for
 from fleet.plan.parameters import ParameterChange, bundle_parameters, parameter_changes
 from fleet.spec import load_spec
 from fleet.wire import protocol as p
+from tests.checkout import FLEETS
 
 TINY = Path(__file__).parent / "data" / "tiny.yaml"
 
@@ -114,3 +117,27 @@ def test_live_overrides_are_said_to_be_kept_or_dropped_as_the_agent_will():
 
     assert rows["robot2"].detail == "sleeper.period 1.0 -> 2.0; live overrides dropped: /robot2/sleeper period=0.5"
     assert rows["robot3"].detail == "live overrides kept: /robot3/sleeper period=0.5"
+
+
+def test_a_world_update_says_what_the_world_will_do(tmp_path):
+    data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
+    spec = tmp_path / "two_robots.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    before = expand_fleet(load_spec(spec), [])
+    robot2 = next(r for r in data["robots"] if r["name"] == "robot2")
+    robot2["pose"] = {"x": -2.0, "y": -1.5, "yaw": 0.0}
+    data["robots"].append({"name": "robot3", "pose": {"x": 0.0, "y": 3.0}})
+    data["world"]["obstacles"] = [o for o in data["world"]["obstacles"] if o["name"] != "crate"]
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    after = expand_fleet(load_spec(spec), [])
+    deployed = {b.name: b for request in requests_for(before, 5, set()) for b in request.bundles}
+    view = build_view(running(before), [], 0.0)
+
+    rows = {row.robot: row for row in diff(after, view, deployed)}
+
+    assert rows["world"].change == "hot-update"
+    assert (
+        rows["world"].detail
+        == "robot2 respawns at (-2, -1.5, yaw 0); robot3 joins at (0, 3, yaw 0); obstacle crate removed"
+    )
+    assert (rows["robot2"].change, rows["robot3"].change) == ("unchanged", "start")
