@@ -86,16 +86,16 @@ def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, cha
     ]
     if old.entry != bundle.entry:
         named.append(f"launch file {old.entry} -> {bundle.entry}")
-    read = {name for name in old.files.keys() | bundle.files.keys() if name.endswith(PARAMS_SUFFIX)}
+    described = {name for name in old.files.keys() | bundle.files.keys() if name.endswith(PARAMS_SUFFIX)}
     if bundle.kind == "world" and old.files.get(WORLD_DESCRIPTION) != bundle.files.get(WORLD_DESCRIPTION):
         world = _world_changes(old.files.get(WORLD_DESCRIPTION, ""), bundle.files.get(WORLD_DESCRIPTION, ""))
         if world is not None:
             named += world
-            read.add(WORLD_DESCRIPTION)
+            described.add(WORLD_DESCRIPTION)
     others = sorted(
         name
         for name in old.files.keys() | bundle.files.keys()
-        if name not in read and old.files.get(name) != bundle.files.get(name)
+        if name not in described and old.files.get(name) != bundle.files.get(name)
     )
     if others:
         named.append(f"{', '.join(others)} changed")
