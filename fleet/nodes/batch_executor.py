@@ -147,10 +147,12 @@ class BatchExecutor:
         if time.monotonic() >= self._next_poll:
             self._poll(on_error)
 
+    def _left(self, node: Any, entity: Any) -> bool:
+        """`node` was removed (a fault), or `entity` destroyed, by an earlier callback of this batch."""
+        return id(node) not in self._live or (self._stale and not _still_has(node, entity))
+
     def _run(self, node: Any, call: Callable[[Any], None], entity: Any, on_error: ErrorHandler | None) -> None:
-        if id(node) not in self._live:  # removed by an earlier callback of this batch (a fault)
-            return
-        if self._stale and not _still_has(node, entity):  # destroyed by an earlier callback of this batch
+        if self._left(node, entity):
             return
         try:
             call(entity)
@@ -165,8 +167,8 @@ class BatchExecutor:
         latest message (depth 1), so whichever is waited on next after a node leaves holds the
         current time, not an old one."""
         reader, reader_node = self._clocks[0]
-        if id(reader_node) not in self._live or (self._stale and not _still_has(reader_node, reader)):
-            return  # its node left in this batch (a fault): the next wait is on another's
+        if self._left(reader_node, reader):  # the next wait is on another node's
+            return
         latest = None
         while (taken := reader.handle.take_message(reader.msg_type, reader.raw)) is not None:
             latest = taken[0]
