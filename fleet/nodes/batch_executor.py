@@ -201,11 +201,13 @@ class BatchExecutor:
 
     def _gather(self) -> None:
         self._stale = False
-        subscriptions = [(s, node) for node in self._nodes for s in node.subscriptions]
-        self._clocks = [(s, node) for s, node in subscriptions if _is_clock_of_time_source(s)]
+        subscriptions: list[tuple[Any, Any]] = []  # the waited on, but for the time sources' /clock
+        self._clocks = []
+        for node in self._nodes:
+            for s in node.subscriptions:
+                (self._clocks if _is_clock_of_time_source(s) else subscriptions).append((s, node))
         members: dict[str, Iterable[tuple[Any, Any]]] = {
-            "subscription": [(s, node) for s, node in subscriptions if not _is_clock_of_time_source(s)]
-            + self._clocks[:1],
+            "subscription": subscriptions + self._clocks[:1],
             "timer": [(t, node) for node in self._nodes for t in node.timers],
             "service": [(s, node) for node in self._nodes for s in node.services],
             "client": [(c, node) for node in self._nodes for c in node.clients],
