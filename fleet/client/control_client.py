@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,21 +43,11 @@ class ControlClient:
         self, fleet: str | None = None, timeout: float = STATUS_TIMEOUT
     ) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
         """One wildcard get: a reply from every agent (per fleet it serves) and from the registry."""
-        import zenoh
-
         statuses: list[p.StatusReply] = []
         registries: list[p.RegistryReply] = []
-        replies = self.session.get(
-            p.status_query(fleet),
-            target=zenoh.QueryTarget.ALL,
-            consolidation=zenoh.ConsolidationMode.NONE,
-            timeout=timeout,
-        )
-        for reply in replies:
-            if reply.ok is None:
-                continue
+        for answer in self._every_answer(p.status_query(fleet), timeout):
             try:
-                data = p.parse(reply.ok.payload.to_bytes())
+                data = p.parse(answer)
                 if data.get("kind") == "status":
                     statuses.append(p.validate(data, p.StatusReply))
                 elif data.get("kind") == "registry":
@@ -68,23 +58,28 @@ class ControlClient:
 
     def desired_states(self, fleet: str, timeout: float = STATUS_TIMEOUT) -> list[p.ApplyRequest]:
         """The desired state the router keeps for each agent of `fleet`: what the last deploy sent."""
+        states = []
+        for answer in self._every_answer(p.desired_key(fleet, "*"), timeout, p.encode(p.DesiredQuery())):
+            try:
+                states.append(p.decode(answer, p.ApplyRequest))
+            except p.ProtocolError:
+                continue  # another version of fleet on the same router: skip, don't crash
+        return states
+
+    def _every_answer(self, key: str, timeout: float, payload: bytes | None = None) -> Iterator[bytes]:
+        """One wildcard get: the payload of every reply that is not an error, as the replies come."""
         import zenoh
 
         replies = self.session.get(
-            p.desired_key(fleet, "*"),
-            payload=p.encode(p.DesiredQuery()),
+            key,
+            payload=payload,
             target=zenoh.QueryTarget.ALL,
             consolidation=zenoh.ConsolidationMode.NONE,
             timeout=timeout,
         )
-        states = []
         for reply in replies:
             if reply.ok is not None:
-                try:
-                    states.append(p.decode(reply.ok.payload.to_bytes(), p.ApplyRequest))
-                except p.ProtocolError:
-                    continue  # another version of fleet on the same router: skip, don't crash
-        return states
+                yield reply.ok.payload.to_bytes()
 
     # -- requests to one agent ------------------------------------------------------------------
 
