@@ -71,7 +71,11 @@ def down(
 def deploy(
     spec: Path = typer.Argument(..., help="Fleet spec file, e.g. fleets/two_robots.yaml."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
-    wait: bool = typer.Option(True, "--wait/--no-wait", help="Wait until every robot's nodes run."),
+    wait: bool = typer.Option(
+        True,
+        "--wait/--no-wait",
+        help="Wait until every robot runs (--no-wait: only until the router holds the deploy).",
+    ),
     timeout: float = typer.Option(60.0, "--timeout", min=0, help="Seconds to wait for the fleet to come up."),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,

@@ -31,6 +31,9 @@ if TYPE_CHECKING:
     from fleet.expand.expansion import Expansion
 
 POLL_INTERVAL = 0.1
+# How long the router may take to hold a deploy's plan before the deploy leaves it again: a router
+# that was still starting (its session open, its subscribers not yet declared) drops the puts.
+RECORD_AGAIN = 1.0
 
 
 @dataclass
@@ -112,6 +115,7 @@ def deploy(
         _send(client, expansion, requests, registries, outcome)
     wanted = {b.name for b in expansion.bundles if not isinstance(outcome.replies.get(b.agent), ControlError)}
     deadline = time.monotonic() + timeout
+    record_again = time.monotonic() + RECORD_AGAIN
     while True:
         if not outcome.already_applied or outcome.view is not None:  # else the status above is fresh
             statuses, registries = client.status(expansion.fleet)
@@ -122,9 +126,16 @@ def deploy(
                 outcome.superseded_by = max(outcome.superseded_by or 0, generation)
         if on_progress is not None:
             on_progress(outcome.view.robots)
-        if not wait or outcome.superseded_by is not None:
+        if outcome.superseded_by is not None:
             break
+        # Even without waiting for the robots, the router must hold the plan and the desired
+        # states before the session closes: closing right after the puts can lose them.
         judged = outcome.already_applied or _plan_taken(registries, expansion.fleet, outcome.generation)
+        if judged and not wait:
+            break
+        if not judged and time.monotonic() >= record_again:
+            _record(client, expansion, requests, registries, outcome.generation)
+            record_again = time.monotonic() + RECORD_AGAIN
         if judged and (
             _settled(outcome.view, wanted, outcome.generation) or _hopeless(outcome.view, wanted, outcome.generation)
         ):
@@ -144,15 +155,24 @@ def _send(
     outcome: Outcome,
 ) -> None:
     outcome.replies = client.send_applies(requests)
-    # After the applies (an agent that took its apply directly then holds this generation already):
-    # the router keeps each desired state for agents that were away, and the plan for status.
-    client.put_desired(
-        with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
-    )
-    client.put_plan(plan_record(expansion, outcome.generation))
+    # After the applies: an agent that took its apply directly then holds this generation already.
+    _record(client, expansion, requests, registries, outcome.generation)
     for reply in outcome.replies.values():
         if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
             outcome.superseded_by = max(outcome.superseded_by or 0, reply.current_generation)
+
+
+def _record(
+    client: ControlClient,
+    expansion: Expansion,
+    requests: list[p.ApplyRequest],
+    registries: list[p.RegistryReply],
+    generation: int,
+) -> None:
+    """Leave the deploy with the router: each desired state, for agents that are away, and the
+    plan, for status.  Leaving them twice is harmless (the router keeps the later generation)."""
+    client.put_desired(with_planned_agents(requests, registries, expansion.fleet, generation, expansion.domain_id))
+    client.put_plan(plan_record(expansion, generation))
 
 
 def _plan_taken(registries: list[p.RegistryReply], fleet: str, generation: int) -> bool:

@@ -24,8 +24,8 @@ SERVER_PROGRAM = "fast-discovery-server"  # ships in the ROS wheels (package ros
 
 @dataclass(frozen=True)
 class DiscoveryPlan:
-    host: str | None  # agent running the server; None: no agent can (every one is offline)
-    server: str | None  # "address:port"
+    host: str | None  # agent running the server; None: the fleet has no agent
+    server: str | None  # "address:port"; None: the host's address is not known yet (it is offline)
     note: str = ""  # why the choice is not the usual one, for the person deploying
 
 
@@ -46,11 +46,15 @@ def plan_discovery(
                 f"{addresses[agent]}:{port}",
                 f"agent {preferred} is offline: agent {agent} runs the DDS discovery server",
             )
+    if preferred is None:
+        return DiscoveryPlan(None, None)
+    # Its address is not known yet: the host serves at the address it reports once up, and the
+    # other agents ask it for that address (fleet.server.agent).
     return DiscoveryPlan(
+        preferred,
         None,
-        None,
-        "no agent of the fleet is online to run its DDS discovery server: "
-        "its robots will only find ROS nodes on their own computer",
+        f"no agent of the fleet is online: agent {preferred} runs its DDS discovery server "
+        "when it comes online, and the robots of other agents wait for it to reach across computers",
     )
 
 

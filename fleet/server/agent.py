@@ -99,6 +99,9 @@ class Agent:
         self._units: dict[tuple[str, str], Unit] = {}
         self._reconciled: dict[str, int] = {}
         self._tokens: dict[str, Any] = {}
+        # (fleet, agent) -> the address of that fleet's discovery host, asked of it because the
+        # deploy could not say (see _discovery_server)
+        self._host_addresses: dict[tuple[str, str], str] = {}
         # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
         self._services: dict[tuple[str, str], Any] = {}
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
@@ -152,6 +155,7 @@ class Agent:
         while not self.stop_event.is_set() and self._session is not None:
             if time.monotonic() >= next_fetch:
                 stalled = 0 if self._fetch_desired(self._session) else stalled + 1
+                self._find_discovery_hosts(self._session)
                 next_fetch = time.monotonic() + DESIRED_POLL
                 if stalled >= STALLED_FETCHES:
                     self._reopen_session()
@@ -381,7 +385,7 @@ class Agent:
             units = {name: unit for (f, name), unit in self._units.items() if f == fleet}
             overrides = {robot: dict(values) for robot, values in state.overrides.items()}
             generation = state.generation
-            env = self._unit_env(state.request.domain_id, state.request.discovery_server)
+            env = self._unit_env(state.request.domain_id, self._discovery_server(state.request))
         # A unit whose environment is not this one (the fleet's discovery server moved) restarts.
         changes = plan_changes(
             {name: unit.bundle for name, unit in units.items()},
@@ -450,15 +454,63 @@ class Agent:
         with self._lock:
             requests = [state.request for state in self._fleets.values() if state.request.bundles]
         for request in requests:
-            if request.discovery_server and request.discovery_host == self.name:
-                wanted[(request.fleet, "discovery")] = (request.discovery_server, request)
+            server = self._discovery_server(request)
+            if server and request.discovery_host == self.name:
+                wanted[(request.fleet, "discovery")] = (server, request)
             if request.transport == "zenoh" and (request.bridge.exports or request.bridge.imports):
                 routes = request.bridge.model_dump_json()
-                wanted[(request.fleet, "bridge")] = (f"{request.discovery_server}|{routes}", request)
+                wanted[(request.fleet, "bridge")] = (f"{server}|{routes}", request)
             if request.shared:
                 topics = ",".join(topic.name for topic in request.shared)
-                wanted[(request.fleet, "watch")] = (f"{request.discovery_server}|{topics}", request)
+                wanted[(request.fleet, "watch")] = (f"{server}|{topics}", request)
         return wanted
+
+    def _discovery_server(self, request: p.ApplyRequest) -> str | None:
+        """The fleet's DDS discovery server ("address:port"), as its deploy said.  A deploy made
+        while the host was offline names only the host: it serves at its own address, and the
+        other agents use the address it gave when asked (None until then: their nodes stay on
+        this computer, and the fleet's robots are restarted with the server once it is found)."""
+        if request.discovery_server or request.discovery_host is None:
+            return request.discovery_server
+        from fleet.runtime.environment import discovery_server_port
+
+        if request.discovery_host == self.name:
+            address: str | None = self.info.address
+        else:
+            address = self._host_addresses.get((request.fleet, request.discovery_host))
+        return f"{address}:{discovery_server_port(request.domain_id)}" if address else None
+
+    def _find_discovery_hosts(self, session) -> None:
+        """Ask the discovery host of each fleet waiting for one for its address (its status
+        reply says it); a fleet whose host answers is reconciled with the server."""
+        with self._lock:
+            waiting = {
+                (fleet, state.request.discovery_host)
+                for fleet, state in self._fleets.items()
+                if state.request.bundles and state.request.discovery_host and not self._discovery_server(state.request)
+            }
+        for fleet, host in sorted(waiting):
+            try:
+                replies = list(session.get(p.agent_status_key(fleet, host), timeout=DESIRED_TIMEOUT))
+            except Exception as error:  # no router right now: the next round asks again
+                log.debug("cannot ask agent %s for its address: %s", host, error)
+                continue
+            for reply in replies:
+                if reply.ok is None:
+                    continue
+                try:
+                    address = p.decode(reply.ok.payload.to_bytes(), p.StatusReply).agent.address
+                except p.ProtocolError as error:
+                    log.error("ignoring the status of agent %s: %s", host, error)
+                    continue
+                if p.address_problem(address):
+                    log.error("agent %s reports no address others can reach: %s", host, p.address_problem(address))
+                    break
+                log.info("fleet %s: its discovery server runs on agent %s at %s", fleet, host, address)
+                with self._lock:
+                    self._host_addresses[(fleet, host)] = address
+                self._work.put(fleet)
+                break
 
     def _service(self, fleet: str, kind: str, key: str, request: p.ApplyRequest):
         from fleet.dataplane.discovery import discovery_server
@@ -485,7 +537,7 @@ class Agent:
             ),
         )
         command = [sys.executable, "-m", "fleet.dataplane.bridge", str(config)]
-        env = self._unit_env(request.domain_id, request.discovery_server)
+        env = self._unit_env(request.domain_id, self._discovery_server(request))
         return ServiceProcess(key, command, env, directory / f"{fleet}.bridge.log")
 
     def _shared_watch(self, fleet: str, key: str, request: p.ApplyRequest):
@@ -499,8 +551,8 @@ class Agent:
         status_file.unlink(missing_ok=True)  # counts of an earlier watch are not this one's
         topics = [topic.name for topic in request.shared]
         write_atomic(config, json.dumps({"fleet": fleet, "topics": topics, "status_file": str(status_file)}))
-        env = self._unit_env(request.domain_id, request.discovery_server)
-        if request.discovery_server:
+        env = self._unit_env(request.domain_id, self._discovery_server(request))
+        if "ROS_DISCOVERY_SERVER" in env:
             env["ROS_SUPER_CLIENT"] = "TRUE"  # sees every publisher without subscribing
         command = [sys.executable, "-m", "fleet.dataplane.watch", str(config)]
         return ServiceProcess(key, command, env, directory / f"{fleet}.watch.log")

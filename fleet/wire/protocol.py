@@ -300,8 +300,10 @@ class ApplyRequest(Message):
     domain_id: int = Field(ge=0, le=232)
     bundles: list[BundleMessage] = Field(max_length=MAX_BUNDLES)
     sent_at: float = 0.0
-    # The fleet's DDS discovery server ("address:port") and the agent that runs it; None: the
-    # fleet's ROS traffic stays on each agent's computer (no agent could host a server).
+    # The fleet's DDS discovery server ("address:port") and the agent that runs it.  A host
+    # without a server: the host was offline at the deploy, so its address was not known; it
+    # serves at the address it reports and the other agents ask it for that.  Neither: the
+    # fleet's ROS traffic stays on each agent's computer.
     discovery_server: str | None = None
     discovery_host: str | None = None
     # The `zenoh` transport: topics this agent's bridge carries over the fleet's Zenoh network.

@@ -6,7 +6,7 @@ from typing import Literal
 
 import pytest
 
-from fleet.dataplane.discovery import plan_discovery
+from fleet.dataplane.discovery import DiscoveryPlan, plan_discovery
 from fleet.plan.view import NO_COMMANDS, STARTUP_GRACE, WORLD_SILENT, build_view
 from fleet.runtime.environment import discovery_server_port, ros_environment
 from fleet.wire import protocol as p
@@ -139,9 +139,15 @@ def test_another_online_agent_runs_it_when_the_world_agent_is_away():
     assert plan.host == "rack_a" and "sim is offline" in plan.note
 
 
-def test_no_online_agent_means_no_server_and_a_note():
-    plan = plan_discovery(None, ["rack_a"], {}, 7)
-    assert plan.server is None and "no agent" in plan.note
+def test_with_no_agent_online_the_world_agent_will_run_it_where_it_comes_up():
+    plan = plan_discovery("sim", ["rack_a", "sim"], {}, 7)
+    assert (plan.host, plan.server) == ("sim", None) and "agent sim runs" in plan.note
+    plan = plan_discovery(None, ["rack_b", "rack_a"], {}, 7)
+    assert (plan.host, plan.server) == ("rack_a", None)
+
+
+def test_a_fleet_without_agents_has_no_server():
+    assert plan_discovery(None, [], {}, 7) == DiscoveryPlan(None, None)
 
 
 def test_discovery_ports_are_valid_and_distinct_for_every_domain():

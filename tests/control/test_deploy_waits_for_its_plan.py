@@ -1,4 +1,6 @@
 """A deploy judges its robots only once the router holds its plan; `fleet down` returns only then.
+A deploy without waiting for its robots still returns only once the router holds the plan, and
+leaves it again when the router missed it.
 
 The router takes a deploy's plan (a put) and answers status (a query) on different threads, so
 the first status after a deploy can still carry the last plan: a robot the deploy removed then
@@ -76,15 +78,44 @@ class LaggingRouter:
         self.arriving.append(plan)
 
 
-def test_a_removed_robot_is_not_left_pending_by_the_last_plan(tmp_path):
+class StartingRouter(LaggingRouter):
+    """A router whose session is open but whose subscribers are not declared yet: it drops the
+    first plan put to it (seen in tests/multihost: a deploy right after the router started)."""
+
+    def __init__(self, robots: list[str], generation: int):
+        super().__init__(robots, generation)
+        self.dropped = 0
+
+    def put_plan(self, plan):
+        if self.dropped == 0:
+            self.dropped += 1
+        else:
+            super().put_plan(plan)
+
+
+def tiny_expansion(tmp_path: Path, robots: list[str]):
     spec = yaml.safe_load((DATA / "tiny.yaml").read_text())
     spec["templates"] = str(DATA / "templates")
-    spec["robots"] = [{"name": "robot1"}]  # robot3 removed
+    spec["robots"] = [{"name": name} for name in robots]
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(spec))
+    return expand_fleet(load_spec(path), [])
+
+
+def test_a_deploy_without_waiting_returns_once_the_router_holds_its_plan(tmp_path):
+    router = StartingRouter(["robot1"], generation=1)
+
+    outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), wait=False, timeout=5.0)  # type: ignore[arg-type]
+
+    assert router.dropped == 1 and not outcome.timed_out
+    assert router.answered is not None and router.answered.plan is not None
+    assert router.answered.plan.generation == outcome.generation, "the deploy ended before the router held its plan"
+
+
+def test_a_removed_robot_is_not_left_pending_by_the_last_plan(tmp_path):
     router = LaggingRouter(["robot1", "robot3"], generation=1)
 
-    outcome = deploy(router, expand_fleet(load_spec(path), []), timeout=5.0)  # type: ignore[arg-type]
+    outcome = deploy(router, tiny_expansion(tmp_path, ["robot1"]), timeout=5.0)  # type: ignore[arg-type]  # robot3 removed
 
     assert outcome.ok and not outcome.timed_out, outcome.view and outcome.view.robots
     assert outcome.view is not None and [row.name for row in outcome.view.robots] == ["robot1"]

@@ -76,6 +76,7 @@ SPEC: dict[str, Any] = {
     ],
 }
 ROBOTS = ("a1", "a2", "b1", "b2")
+AGENT_HOSTS = {"sim_host": "sim", "rack_a": "rack_a", "rack_b": "rack_b"}
 LIST_TOPICS = """
 import time, rclpy
 rclpy.init()
@@ -122,8 +123,16 @@ class Fleet:
             )
 
     def start(self) -> None:
+        self.start_router()
+        self.start_agents("sim_host", "rack_a", "rack_b")
+
+    def start_router(self) -> None:
         self.spawn("router", "sim", "router", "--listen", self.endpoint, "--state-dir", str(self.root / "router"))
-        for agent, host in (("sim_host", "sim"), ("rack_a", "rack_a"), ("rack_b", "rack_b")):
+
+    def start_agents(self, *agents: str) -> None:
+        """Agents by name; each runs on the computer AGENT_HOSTS names."""
+        for agent in agents:
+            host = AGENT_HOSTS[agent]
             self.spawn(
                 agent,
                 host,
@@ -209,6 +218,19 @@ def fleet(request, lan, tmp_path, ros_domain):
     running = Fleet(lan, tmp_path)
     running.transport = request.param
     running.start()
+    try:
+        yield running
+    finally:
+        running.stop_and_expect_nothing_left()
+
+
+@pytest.fixture
+def router_only(lan, tmp_path, ros_domain):
+    """The LAN with only its router up (transport dds); the test starts the agents."""
+    spec = dict(SPEC, ros={"domain_id": ros_domain, "use_sim_time": True, "transport": "dds"})
+    (tmp_path / "lan.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    running = Fleet(lan, tmp_path)
+    running.start_router()
     try:
         yield running
     finally:
@@ -343,3 +365,37 @@ def test_fleet_across_three_computers(fleet, tmp_path):
         60,
         "rack_b's robots running again once its cable is back",
     )
+
+
+def test_deploy_before_the_agents_are_up(router_only, tmp_path):
+    """kubectl-style: the desired state waits at the router.  No agent is online to tell where the
+    fleet's DDS discovery server will run, so its host (the world's agent) runs it at its own
+    address once up, and the other agents find that address then: started before it, their
+    robots first run without the server and are restarted with it."""
+    fleet = router_only
+    deploy = poll(
+        lambda: fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--no-wait", timeout=60),
+        until=lambda done: "unreachable" in done.stdout + done.stderr,
+        timeout=30,
+        interval=0.5,
+        what="a deploy the router takes while no agent is up",
+        describe=lambda done: done.stdout + done.stderr,
+    )
+    assert deploy.returncode != 0, deploy.stdout
+    assert "sim_host runs" in " ".join(deploy.stdout.split()), deploy.stdout
+
+    fleet.start_agents("rack_a", "rack_b")
+    fleet.wait(
+        lambda robots: all(robots.get(name, {}).get("state") not in (None, "pending") for name in ROBOTS),
+        60,
+        "the racks' agents to fetch their robots from the router",
+    )
+    fleet.start_agents("sim_host")
+    robots = fleet.wait(
+        lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ("world", *ROBOTS)),
+        120,
+        "every robot running once the world's agent is up",
+    )
+    assert set(robots) == {"world", *ROBOTS}
+    servers = {d["agent"]: d["server"] for d in fleet.status()["discovery"]["lan"]}
+    assert servers == {"sim_host": f"{fleet.lan.hosts['sim'].address}:{servers['sim_host'].rpartition(':')[2]}"}
