@@ -1,4 +1,4 @@
-"""Commands on one robot, through its agent: logs, param get/set."""
+"""Commands on one robot, through its agent: logs, param get/set/list."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ def register(app: typer.Typer) -> None:
     param_app.command("get")(param_get)
     # A negative value (`... max_speed -0.5`) is the value, as with `ros2 param set`, not an option.
     param_app.command("set", context_settings={"ignore_unknown_options": True})(param_set)
+    param_app.command("list")(param_list)
     app.add_typer(param_app, name="param")
 
 
@@ -77,7 +78,7 @@ def _parse_value(text: str):
     return value
 
 
-def _param(robot: str, node: str, name: str, op: Literal["get", "set"], value, fleet, connect, zenoh_config):
+def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], value, fleet, connect, zenoh_config):
     from pydantic import ValidationError
 
     from fleet.client import locate_robot
@@ -131,3 +132,41 @@ def param_set(
         typer.echo(error_line(f"{robot}/{node} refused {name}={value}: {reply.reason}"), err=True)
         raise typer.Exit(1)
     typer.echo(f"{robot}/{node}: {name} = {reply.value!r} (recorded on the agent)")
+
+
+def param_list(
+    robot: str = typer.Argument(...),
+    node: str | None = typer.Argument(None, help="One node of the robot (default: every node)."),
+    fleet: str | None = typer.Option(None, "--fleet"),
+    json: bool = typer.Option(False, "--json", help="Print {node: {parameter: value}} and what was set live."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+) -> None:
+    """Print every parameter of a robot's nodes as they are now (like `ros2 param dump`)."""
+    from fleet.cli.output import console, print_json, table
+    from fleet.cli.plan_view import format_value
+
+    reply = _param(robot, node or "", "", "list", None, fleet, connect, zenoh_config)
+    if not reply.ok:
+        from fleet.errors import error_line
+
+        typer.echo(error_line(f"{robot}: {reply.reason}"), err=True)
+        raise typer.Exit(1)
+    if json:
+        print_json(
+            {"robot": robot, "parameters": reply.parameters, "set_live": reply.set_live, "unanswered": reply.unanswered}
+        )
+    else:
+        rows = table("node", "parameter", "value", "", title=f"Parameters of {robot}")
+        for node_name, values in sorted(reply.parameters.items()):
+            live = set(reply.set_live.get(node_name, []))
+            for name, value in values.items():
+                shown = "(not shown: a byte array)" if value is None else format_value(value)
+                rows.add_row(node_name, name, shown, "set live" if name in live else "")
+        console().print(rows)
+    if reply.unanswered:
+        from fleet.errors import error_line
+
+        for node_name, why in sorted(reply.unanswered.items()):
+            typer.echo(error_line(f"{robot}/{node_name}: {why}"), err=True)
+        raise typer.Exit(1)

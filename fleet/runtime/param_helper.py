@@ -1,11 +1,14 @@
-"""Get or set one ROS parameter of a running node through its parameter services.
+"""Get or set one ROS parameter of a running node, or list every parameter of some nodes, through
+their parameter services.
 
 Run by the agent as a subprocess, in the fleet's ROS environment (its ROS_DOMAIN_ID):
 
     python -m fleet.runtime.param_helper get /robot1/controller max_speed
     python -m fleet.runtime.param_helper set /robot1/controller max_speed 0.8   # value as JSON
+    python -m fleet.runtime.param_helper list /robot1/controller /robot1/battery
 
-Prints one JSON line: {"v": 1, "kind": "param_reply", "ok": ..., "value": ..., "reason": ...}.
+Prints one JSON line: {"v": 1, "kind": "param_reply", "ok": ..., "value": ..., "reason": ...};
+a list's has "parameters": {node: {name: value}} and "unanswered": {node: why}.
 A set is typed after the parameter's current type (1 becomes 1.0 for a double, as people
 expect); the node's own checks (ranges, read-only) decide, and its reason is passed back.
 """
@@ -19,8 +22,9 @@ import time
 SERVICE_TIMEOUT = 20.0
 
 
-def _reply(ok: bool, value=None, reason: str = "") -> None:
-    print(json.dumps({"v": 1, "kind": "param_reply", "ok": ok, "value": value, "reason": reason}), flush=True)
+def _reply(ok: bool, value=None, reason: str = "", **more) -> None:
+    reply = {"v": 1, "kind": "param_reply", "ok": ok, "value": value, "reason": reason, **more}
+    print(json.dumps(reply), flush=True)
 
 
 def _python_value(message):
@@ -91,8 +95,52 @@ def _call(node, service_type, name: str, request):
     return response
 
 
+LIST_DISCOVERY = 10.0  # s: how long a list waits for every node's parameter services to appear
+
+
+def _services_present(node, service_type, names: set[str], timeout: float) -> set[str]:
+    """Those of the service `names` that answer, once all do or `timeout` has passed.  A client
+    per service, not the graph: a discovery client (ROS_DISCOVERY_SERVER) sees only the
+    endpoints that match its own."""
+    import rclpy
+
+    clients = {name: node.create_client(service_type, name) for name in names}
+    deadline = time.monotonic() + timeout
+    try:
+        while True:
+            present = {name for name, client in clients.items() if client.service_is_ready()}
+            if present == names or time.monotonic() >= deadline:
+                return present
+            rclpy.spin_once(node, timeout_sec=0.1)
+    finally:
+        for client in clients.values():
+            node.destroy_client(client)
+
+
+def _list(node, fqns: list[str]) -> None:
+    """Every parameter of each node in `fqns`, with its value, like `ros2 param dump`.  A node
+    without parameter services (not a ROS node, or not running) is named in "unanswered"; it
+    costs one LIST_DISCOVERY wait for all such nodes, not SERVICE_TIMEOUT each."""
+    from rcl_interfaces.srv import GetParameters, ListParameters
+
+    present = _services_present(node, ListParameters, {f"{fqn}/list_parameters" for fqn in fqns}, LIST_DISCOVERY)
+    parameters, unanswered = {}, {}
+    for fqn in fqns:
+        if f"{fqn}/list_parameters" not in present:
+            unanswered[fqn] = "it has no parameter services (not a ROS node, or not running)"
+            continue
+        try:
+            listed = _call(node, ListParameters, f"{fqn}/list_parameters", ListParameters.Request())
+            names = sorted(listed.result.names)
+            got = _call(node, GetParameters, f"{fqn}/get_parameters", GetParameters.Request(names=names))
+        except TimeoutError as error:
+            unanswered[fqn] = str(error)
+            continue
+        parameters[fqn] = {name: _python_value(value) for name, value in zip(names, got.values, strict=True)}
+    _reply(True, parameters=parameters, unanswered=unanswered)
+
+
 def main(argv: list[str]) -> int:
-    op, fqn, name = argv[0], argv[1], argv[2]
     import rclpy
     from rcl_interfaces.msg import ParameterType
     from rcl_interfaces.srv import GetParameters, SetParameters
@@ -101,6 +149,10 @@ def main(argv: list[str]) -> int:
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"])
     node = rclpy.create_node(f"fleet_param_{__import__('os').getpid()}")
     try:
+        if argv[0] == "list":
+            _list(node, argv[1:])
+            return 0
+        op, fqn, name = argv[0], argv[1], argv[2]
         got = _call(node, GetParameters, f"{fqn}/get_parameters", GetParameters.Request(names=[name]))
         current = got.values[0] if got.values else None
         if current is None or current.type == ParameterType.PARAMETER_NOT_SET:

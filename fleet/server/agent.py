@@ -710,13 +710,30 @@ class Agent:
     def _handle_param(self, query):
         request = p.decode(_payload(query), p.ParamRequest)
         unit = self._unit(request.fleet, request.robot)
-        fqn = unit.node_fqn(request.node)
-        if fqn is None:
-            raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
-        reply = call_parameter_service(fqn, request, unit.env)
-        if request.op == "set" and reply.ok:
-            self._record_override(request, fqn, reply.value)
+        nodes = [request.node] if request.node else unit.node_names()
+        fqns = {node: unit.node_fqn(node) for node in nodes}
+        missing = [node for node, fqn in fqns.items() if fqn is None]
+        if missing:
+            raise p.ProtocolError(f"robot {request.robot} has no node {missing[0]!r}", "not_found")
+        if request.op == "list":
+            reply = self._list_parameters(request, {fqn: node for node, fqn in fqns.items() if fqn}, unit.env)
+        else:
+            fqn = fqns[request.node] or ""
+            reply = call_parameter_service([fqn], request, unit.env)
+            if request.op == "set" and reply.ok:
+                self._record_override(request, fqn, reply.value)
         yield p.param_key(request.fleet, self.name), p.encode(reply)
+
+    def _list_parameters(self, request: p.ParamRequest, nodes: dict[str, str], env: dict[str, str]) -> p.ParamReply:
+        """Every parameter of the nodes (fqn -> node name), named by node, and those set live."""
+        reply = call_parameter_service(sorted(nodes), request, env)
+        reply.parameters = {nodes[fqn]: values for fqn, values in reply.parameters.items() if fqn in nodes}
+        reply.unanswered = {nodes[fqn]: why for fqn, why in reply.unanswered.items() if fqn in nodes}
+        with self._lock:
+            state = self._fleets.get(request.fleet)
+            live = dict(state.overrides.get(request.robot, {})) if state else {}
+        reply.set_live = {nodes[fqn]: sorted(values) for fqn, values in live.items() if fqn in nodes}
+        return reply
 
     def _record_override(self, request: p.ParamRequest, fqn: str, value: Any) -> None:
         """Keep an accepted set across restarts: persist it and rewrite the unit's params file."""
@@ -738,17 +755,20 @@ def _payload(query) -> bytes | None:
     return None if payload is None else payload.to_bytes()
 
 
-def call_parameter_service(fqn: str, request: p.ParamRequest, env: dict[str, str]) -> p.ParamReply:
-    """Run the rclpy helper in a subprocess (rclpy must not share the agent's process)."""
+def call_parameter_service(fqns: list[str], request: p.ParamRequest, env: dict[str, str]) -> p.ParamReply:
+    """Run the rclpy helper in a subprocess (rclpy must not share the agent's process): a get or
+    set on the one node of `fqns`, or a list of every node's parameters."""
     import json
 
-    command = [sys.executable, "-m", "fleet.runtime.param_helper", request.op, fqn, request.name]
+    command = [sys.executable, "-m", "fleet.runtime.param_helper", request.op, *fqns]
+    if request.op != "list":
+        command.append(request.name)
     if request.op == "set":
         command.append(json.dumps(request.value))
     try:
         done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=p.PARAM_TIMEOUT)
     except subprocess.TimeoutExpired:
-        return p.ParamReply(ok=False, reason=f"no answer from {fqn} within {p.PARAM_TIMEOUT:.0f} s")
+        return p.ParamReply(ok=False, reason=f"no answer from {', '.join(fqns)} within {p.PARAM_TIMEOUT:.0f} s")
     try:
         return p.ParamReply.model_validate_json(done.stdout.strip().splitlines()[-1])
     except Exception:

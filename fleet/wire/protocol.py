@@ -620,13 +620,15 @@ class ParamRequest(Message):
     kind: Literal["param"] = "param"
     fleet: str
     robot: str
-    node: str
-    name: str = Field(min_length=1, max_length=200, pattern=r"^[A-Za-z_][A-Za-z0-9_.]*$")
-    op: Literal["get", "set"]
+    node: str  # "" with op "list": every node of the robot
+    name: str = Field("", max_length=200, pattern=r"^([A-Za-z_][A-Za-z0-9_.]*)?$")  # "" with op "list"
+    op: Literal["get", "set", "list"]
     value: ParamValue | None = None
 
     @model_validator(mode="after")
-    def _set_has_value(self) -> ParamRequest:
+    def _get_and_set_name_one_parameter(self) -> ParamRequest:
+        if self.op != "list" and not (self.node and self.name):
+            raise ValueError(f"a {self.op} needs a node and a parameter name")
         if self.op == "set" and self.value is None:
             raise ValueError("a set needs a value")
         return self
@@ -637,6 +639,12 @@ class ParamReply(Message):
     ok: bool
     value: ParamValue | None = None
     reason: str = ""
+    # op "list": node -> parameter -> its value (None: a type fleet does not carry, a byte array),
+    # node -> the parameters set live with `fleet param set` (kept until the robot changes), and
+    # node -> why it did not answer
+    parameters: dict[str, dict[str, ParamValue | None]] = {}
+    set_live: dict[str, list[str]] = {}
+    unanswered: dict[str, str] = {}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""`fleet param get/set` through the agent to a real rclpy node's parameter services."""
+"""`fleet param get/set/list` through the agent to a real rclpy node's parameter services."""
 
 from __future__ import annotations
 
@@ -40,6 +40,19 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     accepted = param(cluster, "set", "robot1", "controller", "max_speed", "1")  # an int for a double: coerced
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr
     assert json.loads(param(cluster, "get", "robot1", "controller", "max_speed").stdout) == 1.0
+
+    # Every parameter as the node holds it now, and which ones were set live.
+    listed = param(cluster, "list", "robot1", "--json")
+    assert listed.returncode == 0, listed.stdout + listed.stderr
+    data = json.loads(listed.stdout)
+    assert data["parameters"]["controller"]["max_speed"] == 1.0
+    assert data["parameters"]["controller"]["use_sim_time"] is False
+    assert data["set_live"] == {"controller": ["max_speed"]}
+    table = param(cluster, "list", "robot1", "controller")
+    row = next(line.split() for line in table.stdout.splitlines() if line.split()[1:2] == ["max_speed"])
+    assert table.returncode == 0 and row == ["controller", "max_speed", "1.0", "set", "live"], table.stdout
+    no_node = param(cluster, "list", "robot1", "no_such_node")
+    assert no_node.returncode == 1 and "no node 'no_such_node'" in no_node.stderr, no_node.stderr
 
     desired = json.loads((cluster.state_dir("hostA") / "desired" / "tiny.json").read_text())
     assert desired["overrides"]["robot1"]["/robot1/controller"]["max_speed"] == 1.0

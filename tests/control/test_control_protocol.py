@@ -140,6 +140,15 @@ def test_param_request_needs_a_value_to_set():
     assert p.ParamRequest(fleet="f", robot="r", node="n", name="x", op="set", value=[1.0, 2.0]).value == [1.0, 2.0]
 
 
+def test_param_get_and_set_name_a_parameter_and_list_may_name_nothing():
+    for op in ("get", "set"):
+        with pytest.raises(ValueError, match=f"a {op} needs a node and a parameter name"):
+            p.ParamRequest(fleet="f", robot="r", node="n", op=op, value=1.0)
+        with pytest.raises(ValueError, match=f"a {op} needs a node and a parameter name"):
+            p.ParamRequest(fleet="f", robot="r", node="", name="x", op=op, value=1.0)
+    assert p.ParamRequest(fleet="f", robot="r", node="", op="list").name == ""
+
+
 # -- planning ---------------------------------------------------------------------------------
 
 
