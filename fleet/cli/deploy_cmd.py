@@ -103,7 +103,9 @@ def deploy(
         print_json(outcome.to_json())
     else:
         _print_outcome(outcome, console())
-    if not outcome.ok and (wait or outcome.unreachable or outcome.refused or outcome.superseded_by):
+    if not outcome.ok and (
+        wait or outcome.timed_out or outcome.unreachable or outcome.refused or outcome.superseded_by
+    ):
         raise typer.Exit(1)
 
 
@@ -186,7 +188,9 @@ def _print_outcome(outcome, out) -> None:
         print_view(outcome.view, out, agents=False)
     if outcome.discovery is not None and outcome.discovery.note:
         out.print(labelled("note:", "yellow", outcome.discovery.note))
-    if outcome.timed_out:
+    if outcome.timed_out and not outcome.recorded:
+        out.print(labelled("timed out", "red", "the router did not take the deploy within the timeout (see its log)"))
+    elif outcome.timed_out:
         stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
         stuck_text = "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
         out.print(labelled("timed out", "red", f"waiting for every robot to run; not running: {stuck_text}"))

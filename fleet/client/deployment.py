@@ -43,6 +43,7 @@ class Outcome:
     view: FleetView | None = None
     superseded_by: int | None = None
     timed_out: bool = False
+    recorded: bool = False  # the router holds this deploy's plan (checked before judging robots)
     discovery: DiscoveryPlan | None = None
     # Every agent already held exactly this desired state: nothing was sent (`replies` is empty
     # and `generation` is the one they hold).
@@ -78,6 +79,7 @@ class Outcome:
             "sent": not self.already_applied,
             "superseded_by": self.superseded_by,
             "timed_out": self.timed_out,
+            "recorded": self.recorded,
             "discovery": None
             if self.discovery is None
             else {"host": self.discovery.host, "server": self.discovery.server, "note": self.discovery.note},
@@ -131,6 +133,7 @@ def deploy(
         # Even without waiting for the robots, the router must hold the plan and the desired
         # states before the session closes: closing right after the puts can lose them.
         judged = outcome.already_applied or _plan_taken(registries, expansion.fleet, outcome.generation)
+        outcome.recorded = outcome.recorded or judged
         if judged and not wait:
             break
         if not judged and time.monotonic() >= record_again:

@@ -107,9 +107,24 @@ def test_a_deploy_without_waiting_returns_once_the_router_holds_its_plan(tmp_pat
 
     outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), wait=False, timeout=5.0)  # type: ignore[arg-type]
 
-    assert router.dropped == 1 and not outcome.timed_out
+    assert router.dropped == 1 and not outcome.timed_out and outcome.recorded
     assert router.answered is not None and router.answered.plan is not None
     assert router.answered.plan.generation == outcome.generation, "the deploy ended before the router held its plan"
+
+
+class DeafRouter(LaggingRouter):
+    """A router that never takes a plan (not a fleet router, or one whose registry is stuck)."""
+
+    def put_plan(self, plan):
+        pass
+
+
+def test_a_deploy_the_router_never_takes_times_out_even_without_waiting(tmp_path):
+    router = DeafRouter(["robot1"], generation=1)
+
+    outcome = deploy(router, tiny_expansion(tmp_path, ["robot1"]), wait=False, timeout=0.5)  # type: ignore[arg-type]
+
+    assert outcome.timed_out and not outcome.recorded and not outcome.ok
 
 
 def test_a_removed_robot_is_not_left_pending_by_the_last_plan(tmp_path):
