@@ -25,9 +25,10 @@ def certs(
 ) -> None:
     """Create the fleet's certificates and Zenoh configs in OUT: mutual TLS, per-agent access rules.
 
-    Creates (or completes) the fleet's certificate authority, a certificate for the router, each
-    agent of SPEC and each operator, and the Zenoh configs that use them, with access rules
-    letting each agent reach only its own keys.  Existing certificates are kept."""
+    Creates (or completes) the fleet's certificate authority, a certificate
+    for the router, each agent of SPEC and each operator, and the Zenoh
+    configs that use them, with access rules letting each agent reach only
+    its own keys.  Existing certificates are kept."""
     from fleet.cli.output import console, print_json
     from fleet.cli.render_cmd import load_and_expand
     from fleet.wire import certificates as c

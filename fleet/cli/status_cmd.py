@@ -24,8 +24,9 @@ def status(
 ) -> None:
     """Agents, robots and worlds of every fleet, and whether their data flows.
 
-    Agents (online/offline), robots (state, nodes, restarts, pose, battery) and worlds (sim time,
-    real-time factor, contacts).  Without --watch, exits 1 unless every robot runs."""
+    Agents (online/offline), robots (state, nodes, restarts, pose, battery)
+    and worlds (sim time, real-time factor, contacts).  Without --watch,
+    exits 1 unless every robot runs."""
     from fleet.cli.output import console, print_json
     from fleet.cli.status_view import print_view, view_tables
     from fleet.client import fleet_status
