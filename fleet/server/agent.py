@@ -710,15 +710,18 @@ class Agent:
     def _handle_param(self, query):
         request = p.decode(_payload(query), p.ParamRequest)
         unit = self._unit(request.fleet, request.robot)
-        nodes = [request.node] if request.node else unit.node_names()
-        fqns = {node: unit.node_fqn(node) for node in nodes}
-        missing = [node for node, fqn in fqns.items() if fqn is None]
-        if missing:
-            raise p.ProtocolError(f"robot {request.robot} has no node {missing[0]!r}", "not_found")
+        # fqn -> node name of the node asked for (by name or fqn), or of every node ("")
+        nodes = {
+            state.fqn: state.name
+            for state in unit.node_states()
+            if state.fqn and request.node in ("", state.name, state.fqn)
+        }
+        if request.node and not nodes:
+            raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
         if request.op == "list":
-            reply = self._list_parameters(request, {fqn: node for node, fqn in fqns.items() if fqn}, unit.env)
+            reply = self._list_parameters(request, nodes, unit.env)
         else:
-            fqn = fqns[request.node] or ""
+            fqn = next(iter(nodes))
             reply = call_parameter_service([fqn], request, unit.env)
             if request.op == "set" and reply.ok:
                 self._record_override(request, fqn, reply.value)

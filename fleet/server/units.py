@@ -204,12 +204,6 @@ class Unit:
             summary.age = round(max(0.0, time.time() - wall_time), 2)
         return summary
 
-    def node_fqn(self, node: str) -> str | None:
-        for state in self.node_states():
-            if state.name == node or state.fqn == node:
-                return state.fqn or None
-        return None
-
     def node_names(self) -> list[str]:
         return [state.name for state in self.node_states()]
 
