@@ -210,7 +210,7 @@ def diff(
 
     from fleet.cli.output import console, print_json
     from fleet.cli.render_cmd import load_and_expand
-    from fleet.plan import build_view
+    from fleet.plan import build_view, discovery_for
     from fleet.plan import diff as plan_diff
 
     expansion = load_and_expand(spec, set_)
@@ -219,7 +219,8 @@ def diff(
         deployed = {
             bundle.name: bundle for state in control.desired_states(expansion.fleet) for bundle in state.bundles
         }
-    rows = plan_diff(expansion, build_view(statuses, registries, time.time()), deployed)
+    view = build_view(statuses, registries, time.time())
+    rows = plan_diff(expansion, view, deployed, discovery_for(expansion, view))
     if json:
         print_json([asdict(row) for row in rows])
         return

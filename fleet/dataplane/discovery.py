@@ -10,13 +10,15 @@ reaches the router from), its port follows from the fleet's domain id.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import sys
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleet.runtime.environment import discovery_server_port
+from fleet.runtime.environment import SERVER_SLOTS, discovery_server_port
 from fleet.runtime.processes import ServiceProcess
 
 SERVER_PROGRAM = "fast-discovery-server"  # ships in the ROS wheels (package ros-fastrtps)
@@ -27,6 +29,8 @@ class DiscoveryPlan:
     host: str | None  # agent running the server; None: the fleet has no agent
     server: str | None  # "address:port"; None: the host's address is not known yet (it is offline)
     note: str = ""  # why the choice is not the usual one, for the person deploying
+    # The `zenoh` transport: every agent's own server on its loopback (see local_servers)
+    local: Mapping[str, str] = field(default_factory=dict)
 
 
 def plan_discovery(
@@ -58,11 +62,25 @@ def plan_discovery(
     )
 
 
-def local_servers(agents: list[str], domain_id: int) -> dict[str, str]:
+def local_servers(agents: list[str], domain_id: int, hostnames: Mapping[str, str] | None = None) -> dict[str, str]:
     """The `zenoh` transport: each agent's own discovery server on its loopback (pure).  DDS then
-    stays on each computer and the bridges carry what crosses; one slot per agent (by name order)
-    keeps agents that share a computer apart."""
-    return {agent: f"127.0.0.1:{discovery_server_port(domain_id, slot)}" for slot, agent in enumerate(sorted(agents))}
+    stays on each computer and the bridges carry what crosses.
+
+    An agent's slot follows from its name, not from the other agents: a server that moves
+    restarts every robot of its agent, and adding a computer must not restart the world.  Only
+    agents on one computer (`hostnames`; agents of unknown hostname count as one computer) need
+    different slots: of two that clash, the later by name takes the next free one."""
+    hostnames = hostnames or {}
+    taken: dict[str, set[int]] = {}
+    servers = {}
+    for agent in sorted(agents):
+        used = taken.setdefault(hostnames.get(agent, ""), set())
+        slot = int.from_bytes(hashlib.sha256(agent.encode()).digest()[:4], "big") % SERVER_SLOTS
+        while slot in used and len(used) < SERVER_SLOTS:
+            slot = (slot + 1) % SERVER_SLOTS
+        used.add(slot)
+        servers[agent] = f"127.0.0.1:{discovery_server_port(domain_id, slot)}"
+    return servers
 
 
 def server_program() -> Path | None:

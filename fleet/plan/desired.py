@@ -53,7 +53,8 @@ def requests_for(
     if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
         from fleet.dataplane.discovery import local_servers
 
-        servers = local_servers(sorted({b.agent for b in expansion.bundles}), expansion.domain_id)
+        placed = sorted({b.agent for b in expansion.bundles})
+        servers = discovery.local if discovery else local_servers(placed, expansion.domain_id)
         for request in requests:
             request.transport = "zenoh"
             request.discovery_server = servers.get(request.agent)
@@ -106,7 +107,9 @@ def discovery_for(expansion: Expansion, view: FleetView) -> DiscoveryPlan:
     agents = sorted({bundle.agent for bundle in expansion.bundles})
     if expansion.transport == "zenoh":
         host = _world_agent(expansion) or (agents[0] if agents else None)
-        return DiscoveryPlan(host, local_servers(agents, expansion.domain_id).get(host) if host else None)
+        hostnames = {agent.name: agent.hostname for agent in view.agents if agent.hostname}
+        servers = local_servers(agents, expansion.domain_id, hostnames)
+        return DiscoveryPlan(host, servers.get(host) if host else None, local=servers)
     addresses = {agent.name: agent.address for agent in view.agents if agent.online and agent.address}
     return plan_discovery(_world_agent(expansion), agents, addresses, expansion.domain_id)
 

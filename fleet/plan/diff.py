@@ -11,6 +11,7 @@ from fleet.rules import PARAMS_SUFFIX, WORLD_DESCRIPTION
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
+    from fleet.dataplane.discovery import DiscoveryPlan
     from fleet.expand.bundle import Bundle
     from fleet.expand.expansion import Expansion
     from fleet.world.description import Pose2D
@@ -31,12 +32,20 @@ OVERRIDES_FATE = {"unchanged": "kept", "hot-update": "kept", "restart": "dropped
 SHOWN_CHANGES = 6  # parameter changes named in a row's detail; --json has them all
 
 
-def diff(expansion: Expansion, view: FleetView, deployed: dict[str, p.BundleMessage] | None = None) -> list[DiffRow]:
+def diff(
+    expansion: Expansion,
+    view: FleetView,
+    deployed: dict[str, p.BundleMessage] | None = None,
+    discovery: DiscoveryPlan | None = None,
+) -> list[DiffRow]:
     """What a deploy of `expansion` would change, robot by robot (live overrides shown as drift).
     `deployed`: robot -> its bundle in the desired state the router keeps; where that is the
-    bundle its agent runs, a restart or hot-update names the parameters it changes."""
+    bundle its agent runs, a restart or hot-update names the parameters it changes.
+    `discovery`: where the deploy would put the DDS discovery servers; robots whose server moves
+    restart (their agent restarts every unit whose environment changes)."""
     current = {row.name: row for row in view.robots_of(expansion.fleet)}
     deployed = deployed or {}
+    moving = _servers_moving(expansion, view, discovery) if discovery else {}
     rows = []
     for bundle in expansion.bundles:
         running = current.pop(bundle.name, None)
@@ -56,17 +65,40 @@ def diff(expansion: Expansion, view: FleetView, deployed: dict[str, p.BundleMess
             rows.append(DiffRow(bundle.name, bundle.agent, "unchanged", "agent offline"))
         else:
             rows.append(DiffRow(bundle.name, bundle.agent, "unchanged"))
-        if running is not None and running.overrides and rows[-1].change in OVERRIDES_FATE:
+        row = rows[-1]
+        fate = OVERRIDES_FATE.get(row.change)  # the agent keeps or drops them by the bundle's change
+        if bundle.agent in moving and row.change in ("unchanged", "hot-update"):
+            row.change, row.detail = "restart", _joined(moving[bundle.agent], row.detail)
+        if running is not None and running.overrides and fate:
             drift = "; ".join(
                 f"{node} {name}={value!r}"
                 for node, values in sorted(running.overrides.items())
                 for name, value in sorted(values.items())
             )
-            fate = f"live overrides {OVERRIDES_FATE[rows[-1].change]}: {drift}"
-            rows[-1].detail = (rows[-1].detail + "; " if rows[-1].detail else "") + fate
-    for name, row in sorted(current.items()):
-        rows.append(DiffRow(name, row.agent, "stop", "not in the spec any more"))
+            row.detail = _joined(row.detail, f"live overrides {fate}: {drift}")
+    for name, left in sorted(current.items()):
+        rows.append(DiffRow(name, left.agent, "stop", "not in the spec any more"))
     return rows
+
+
+def _joined(*parts: str) -> str:
+    return "; ".join(part for part in parts if part)
+
+
+def _servers_moving(expansion: Expansion, view: FleetView, discovery: DiscoveryPlan) -> dict[str, str]:
+    """Agent -> why its robots restart: the DDS discovery server its nodes use would move (pure).
+    The servers in use are those the agents report running now."""
+    running = {entry["agent"]: entry["server"] for entry in view.discovery.get(expansion.fleet, [])}
+    if discovery.local:  # the zenoh transport: each agent its own
+        return {
+            agent: f"its DDS discovery server moves: {running[agent]} -> {server}"
+            for agent, server in discovery.local.items()
+            if running.get(agent, server) != server
+        }
+    if discovery.server is None or not running or discovery.server in running.values():
+        return {}
+    why = f"the fleet's DDS discovery server moves: {', '.join(sorted(set(running.values())))} -> {discovery.server}"
+    return {bundle.agent: why for bundle in expansion.bundles}
 
 
 def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, change: str) -> DiffRow:

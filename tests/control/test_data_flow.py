@@ -8,7 +8,7 @@ import pytest
 
 from fleet.dataplane.discovery import DiscoveryPlan, plan_discovery
 from fleet.plan.view import NO_COMMANDS, STARTUP_GRACE, WORLD_SILENT, build_view
-from fleet.runtime.environment import discovery_server_port, ros_environment
+from fleet.runtime.environment import SERVER_SLOTS, discovery_server_port, ros_environment
 from fleet.wire import protocol as p
 
 OLD = STARTUP_GRACE + 60  # node uptime long past start-up
@@ -233,8 +233,29 @@ def test_with_zenoh_every_agent_gets_its_own_loopback_discovery_server():
     from fleet.dataplane.discovery import local_servers
 
     servers = local_servers(["sim", "rack_b", "rack_a"], 7)
-    assert servers["rack_a"] == f"127.0.0.1:{discovery_server_port(7, 0)}"
     assert len(set(servers.values())) == 3 and all(s.startswith("127.0.0.1:") for s in servers.values())
+    ports = {discovery_server_port(7, slot) for slot in range(SERVER_SLOTS)}
+    assert {int(server.rpartition(":")[2]) for server in servers.values()} <= ports
+
+
+def test_with_zenoh_an_agent_added_or_removed_moves_no_other_agents_server():
+    """A moved server restarts every robot of its agent: adding a computer must not restart the world."""
+    from fleet.dataplane.discovery import local_servers
+
+    agents = [f"rack_{n}" for n in range(6)] + ["sim"]
+    hostnames = {agent: agent for agent in agents}  # one computer each
+    alone = local_servers(agents, 7, hostnames)
+    for changed in (["aaa_first", *agents], agents[1:]):
+        servers = local_servers(changed, 7, {**hostnames, "aaa_first": "aaa_first"})
+        assert {a: servers[a] for a in alone if a in servers} == {a: alone[a] for a in servers if a in alone}
+
+
+def test_with_zenoh_agents_sharing_a_computer_get_distinct_servers():
+    from fleet.dataplane.discovery import local_servers
+
+    agents = [f"agent{n}" for n in range(SERVER_SLOTS)]
+    for hostnames in ({}, dict.fromkeys(agents, "vm")):  # unknown hostnames count as one computer
+        assert len(set(local_servers(agents, 7, hostnames).values())) == SERVER_SLOTS
 
 
 def test_ros_tools_get_the_fleets_domain_and_discovery_server():

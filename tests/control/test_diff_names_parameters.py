@@ -7,6 +7,7 @@ from pathlib import Path
 
 import yaml
 
+from fleet.dataplane.discovery import DiscoveryPlan
 from fleet.expand import expand_fleet
 from fleet.plan import build_view, diff, requests_for
 from fleet.plan.parameters import ParameterChange, bundle_parameters, parameter_changes
@@ -141,3 +142,41 @@ def test_a_world_update_says_what_the_world_will_do(tmp_path):
         == "robot2 respawns at (-2, -1.5, yaw 0); robot3 joins at (0, 3, yaw 0); obstacle crate removed"
     )
     assert (rows["robot2"].change, rows["robot3"].change) == ("unchanged", "start")
+
+
+def test_robots_whose_discovery_server_would_move_are_said_to_restart():
+    """Their agent restarts every unit whose environment changes, keeping live overrides."""
+    before = expand_fleet(load_spec(TINY), [])
+    overrides = {"robot1": {"/robot1/sleeper": {"period": 0.5}}}
+    view = build_view(running(before, overrides=overrides), [], 0.0)
+    view.discovery = {"tiny": [{"agent": "hostA", "server": "10.0.0.1:7402", "pid": 1}]}
+
+    same = diff(before, view, discovery=DiscoveryPlan("hostA", "10.0.0.1:7402"))
+    assert {row.change for row in same} == {"unchanged"}
+    moved = {row.robot: row for row in diff(before, view, discovery=DiscoveryPlan("hostB", "10.0.0.2:7402"))}
+    assert {row.change for row in moved.values()} == {"restart"}
+    assert moved["robot1"].detail == (
+        "the fleet's DDS discovery server moves: 10.0.0.1:7402 -> 10.0.0.2:7402; "
+        "live overrides kept: /robot1/sleeper period=0.5"
+    )
+
+
+def test_with_zenoh_only_the_agent_whose_own_server_would_move_restarts_its_robots():
+    before = expand_fleet(load_spec(TINY), [])
+    view = build_view(running(before), [], 0.0)
+    view.discovery = {
+        "tiny": [
+            {"agent": "hostA", "server": "127.0.0.1:7402", "pid": 1},
+            {"agent": "hostB", "server": "127.0.0.1:7403", "pid": 2},
+        ]
+    }
+    plan = DiscoveryPlan("hostA", "127.0.0.1:7402", local={"hostA": "127.0.0.1:7402", "hostB": "127.0.0.1:7404"})
+
+    rows = {row.robot: row for row in diff(before, view, discovery=plan)}
+
+    assert {name: row.change for name, row in rows.items()} == {
+        "robot1": "unchanged",
+        "robot2": "restart",
+        "robot3": "restart",
+    }
+    assert rows["robot2"].detail == "its DDS discovery server moves: 127.0.0.1:7403 -> 127.0.0.1:7404"
