@@ -145,11 +145,10 @@ def param_list(
     """Print every parameter of a robot's nodes as they are now (like `ros2 param dump`)."""
     from fleet.cli.output import console, print_json, table
     from fleet.cli.plan_view import format_value
+    from fleet.errors import error_line
 
     reply = _param(robot, node or "", "", "list", None, fleet, connect, zenoh_config)
     if not reply.ok:
-        from fleet.errors import error_line
-
         typer.echo(error_line(f"{robot}: {reply.reason}"), err=True)
         raise typer.Exit(1)
     if json:
@@ -165,8 +164,6 @@ def param_list(
                 rows.add_row(node_name, name, shown, "set live" if name in live else "")
         console().print(rows)
     if reply.unanswered:
-        from fleet.errors import error_line
-
         for node_name, why in sorted(reply.unanswered.items()):
             typer.echo(error_line(f"{robot}/{node_name}: {why}"), err=True)
         raise typer.Exit(1)
