@@ -12,6 +12,11 @@ import typer
 from fleet.cli.options import ConnectOption, ZenohConfigOption, client
 from fleet.wire.limits import MAX_LOG_LINES
 
+RobotArgument = typer.Argument(..., help="Robot name (or `world`).")
+FleetOfRobotOption = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it.")
+NodeArgument = typer.Argument(..., help="Node name, as in the robot's launch description.")
+ParameterArgument = typer.Argument(..., help="Parameter name (nested ones with dots: limits.turn).")
+
 
 def register(app: typer.Typer) -> None:
     app.command("logs")(logs)
@@ -24,7 +29,7 @@ def register(app: typer.Typer) -> None:
 
 
 def logs(
-    robot: str = typer.Argument(..., help="Robot name (or `world`)."),
+    robot: str = RobotArgument,
     node: str | None = typer.Argument(None, help="Node name (default: every node of the robot)."),
     follow: bool = typer.Option(False, "--follow", "-f", help="Keep printing new lines until Ctrl-C."),
     tail: int = typer.Option(
@@ -35,7 +40,7 @@ def logs(
         max=MAX_LOG_LINES,
         help="Lines to show first, per node (nodes sharing a process share its log).",
     ),
-    fleet: str | None = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it."),
+    fleet: str | None = FleetOfRobotOption,
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
@@ -96,10 +101,10 @@ def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], 
 
 
 def param_get(
-    robot: str = typer.Argument(...),
-    node: str = typer.Argument(...),
-    name: str = typer.Argument(...),
-    fleet: str | None = typer.Option(None, "--fleet"),
+    robot: str = RobotArgument,
+    node: str = NodeArgument,
+    name: str = ParameterArgument,
+    fleet: str | None = FleetOfRobotOption,
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
@@ -116,11 +121,11 @@ def param_get(
 
 
 def param_set(
-    robot: str = typer.Argument(...),
-    node: str = typer.Argument(...),
-    name: str = typer.Argument(...),
+    robot: str = RobotArgument,
+    node: str = NodeArgument,
+    name: str = ParameterArgument,
     value: str = typer.Argument(..., help="New value, as YAML (0.8, true, [1.0, 2.0])."),
-    fleet: str | None = typer.Option(None, "--fleet"),
+    fleet: str | None = FleetOfRobotOption,
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
@@ -135,9 +140,9 @@ def param_set(
 
 
 def param_list(
-    robot: str = typer.Argument(...),
+    robot: str = RobotArgument,
     node: str | None = typer.Argument(None, help="One node of the robot (default: every node)."),
-    fleet: str | None = typer.Option(None, "--fleet"),
+    fleet: str | None = FleetOfRobotOption,
     json: bool = typer.Option(False, "--json", help="Print {node: {parameter: value}} and what was set live."),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
