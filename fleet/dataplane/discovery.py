@@ -5,7 +5,9 @@ see fleet.runtime.environment): participants on any computer find each other thr
 unicast, with discovery traffic linear in participants.  One agent of the fleet runs it: the
 agent running the world (it is up whenever the fleet is of any use), else the first agent by
 name.  Its address is the one that agent reports (`fleet agent --address`, or the address it
-reaches the router from), its port follows from the fleet's domain id.
+reaches the router from), its port follows from the fleet's domain id.  A deploy made while no
+agent of the fleet is online names the host without an address: the agents find it later
+(fleet.server.agent).
 """
 
 from __future__ import annotations
