@@ -86,19 +86,22 @@ def _joined(*parts: str) -> str:
 
 
 def _servers_moving(expansion: Expansion, view: FleetView, discovery: DiscoveryPlan) -> dict[str, str]:
-    """Agent -> why its robots restart: the DDS discovery server its nodes use would move (pure).
-    The servers in use are those the agents report running now."""
-    running = {entry["agent"]: entry["server"] for entry in view.discovery.get(expansion.fleet, [])}
+    """Agent -> why its robots restart: the DDS discovery server they use, as their agent reports
+    it, is not the one the deploy gives them (pure)."""
     if discovery.local:  # the zenoh transport: each agent its own
-        return {
-            agent: f"its DDS discovery server moves: {running[agent]} -> {server}"
-            for agent, server in discovery.local.items()
-            if running.get(agent, server) != server
-        }
-    if discovery.server is None or not running or discovery.server in running.values():
+        planned, whose = dict(discovery.local), "its"
+    elif discovery.server:
+        planned, whose = dict.fromkeys((bundle.agent for bundle in expansion.bundles), discovery.server), "the fleet's"
+    else:  # its host's address is not known yet: the agents will find it (fleet.server.agent)
         return {}
-    why = f"the fleet's DDS discovery server moves: {', '.join(sorted(set(running.values())))} -> {discovery.server}"
-    return {bundle.agent: why for bundle in expansion.bundles}
+    in_use = view.servers_in_use.get(expansion.fleet, {})
+    return {
+        agent: f"{whose} DDS discovery server moves: {in_use[agent]} -> {server}"
+        if in_use[agent]
+        else f"gets {whose} DDS discovery server {server}"
+        for agent, server in planned.items()
+        if in_use.get(agent, server) != server
+    }
 
 
 def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, change: str) -> DiffRow:

@@ -83,6 +83,8 @@ class FleetView:
     # fleet -> {"agent", "server" ("address:port"), "pid" (None: not running)}; with the zenoh
     # transport every agent runs its own, and the list has one per agent
     discovery: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    # fleet -> agent -> the discovery server its robots use ("": none), as the agent reports it
+    servers_in_use: dict[str, dict[str, str]] = field(default_factory=dict)
     bridges: dict[str, dict[str, int | None]] = field(default_factory=dict)  # fleet -> agent -> pid
     # fleet -> one entry per shared topic: {"name", "publishers" (agent -> count), "problem"}
     shared_topics: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
@@ -106,6 +108,7 @@ class FleetView:
             domain_ids={f: d for f, d in self.domain_ids.items() if f == fleet},
             worlds=[world for world in self.worlds if world.fleet == fleet],
             discovery={f: d for f, d in self.discovery.items() if f == fleet},
+            servers_in_use={f: s for f, s in self.servers_in_use.items() if f == fleet},
             bridges={f: b for f, b in self.bridges.items() if f == fleet},
             shared_topics={f: t for f, t in self.shared_topics.items() if f == fleet},
         )
@@ -152,6 +155,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     domain_ids: dict[str, int] = {}
     worlds: dict[str, tuple[str, p.WorldSummary]] = {}  # fleet -> (agent, summary)
     discovery: dict[str, list[dict[str, Any]]] = {}
+    servers_in_use: dict[str, dict[str, str]] = {}
     bridges: dict[str, dict[str, int | None]] = {}
     shared: dict[str, dict[str, dict[str, p.SharedTopicState]]] = {}  # fleet -> topic -> agent -> state
     placed = {  # (fleet, robot) -> the agent the last deploy put it on
@@ -180,6 +184,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             discovery.setdefault(status.fleet, []).append(
                 {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid}
             )
+        if status.discovery_in_use is not None:
+            servers_in_use.setdefault(status.fleet, {})[info.name] = status.discovery_in_use
         if status.bridge_pid is not None:
             bridges.setdefault(status.fleet, {})[info.name] = status.bridge_pid
         for topic in status.shared_topics:
@@ -265,6 +271,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         domain_ids=domain_ids,
         worlds=world_rows,
         discovery=discovery,
+        servers_in_use=servers_in_use,
         bridges=bridges,
         shared_topics={fleet: shared_topic_rows(topics) for fleet, topics in sorted(shared.items())},
     )

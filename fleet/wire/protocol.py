@@ -557,6 +557,9 @@ class StatusReply(Message):
     # (None while it is not running).
     discovery_server: str | None = None
     discovery_pid: int | None = None
+    # The DDS discovery server this agent's robots of the fleet use ("address:port"; "": none,
+    # their nodes stay on this computer); None when the reply is about no fleet.
+    discovery_in_use: str | None = None
     bridge_pid: int | None = None  # this agent's Zenoh bridge of the fleet, when it runs one
     shared_topics: list[SharedTopicState] = []  # the shared topics this agent watches (fleet.dataplane.watch)
     robots: list[RobotState] = []

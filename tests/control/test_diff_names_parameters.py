@@ -145,11 +145,12 @@ def test_a_world_update_says_what_the_world_will_do(tmp_path):
 
 
 def test_robots_whose_discovery_server_would_move_are_said_to_restart():
-    """Their agent restarts every unit whose environment changes, keeping live overrides."""
+    """Their agent restarts every unit whose environment changes, keeping live overrides.  The
+    servers in use are those each agent reports, so a server whose agent is offline counts too."""
     before = expand_fleet(load_spec(TINY), [])
     overrides = {"robot1": {"/robot1/sleeper": {"period": 0.5}}}
     view = build_view(running(before, overrides=overrides), [], 0.0)
-    view.discovery = {"tiny": [{"agent": "hostA", "server": "10.0.0.1:7402", "pid": 1}]}
+    view.servers_in_use = {"tiny": {"hostA": "10.0.0.1:7402", "hostB": "10.0.0.1:7402"}}
 
     same = diff(before, view, discovery=DiscoveryPlan("hostA", "10.0.0.1:7402"))
     assert {row.change for row in same} == {"unchanged"}
@@ -159,17 +160,29 @@ def test_robots_whose_discovery_server_would_move_are_said_to_restart():
         "the fleet's DDS discovery server moves: 10.0.0.1:7402 -> 10.0.0.2:7402; "
         "live overrides kept: /robot1/sleeper period=0.5"
     )
+    # A host whose address the deploy cannot know yet: the agents find it themselves.
+    assert {row.change for row in diff(before, view, discovery=DiscoveryPlan("hostA", None))} == {"unchanged"}
+
+
+def test_robots_running_without_a_server_are_said_to_restart_with_it():
+    before = expand_fleet(load_spec(TINY), [])
+    view = build_view(running(before), [], 0.0)
+    view.servers_in_use = {"tiny": {"hostA": "10.0.0.1:7402", "hostB": ""}}  # hostB: still asking hostA
+
+    rows = {row.robot: row for row in diff(before, view, discovery=DiscoveryPlan("hostA", "10.0.0.1:7402"))}
+
+    assert {name: row.change for name, row in rows.items()} == {
+        "robot1": "unchanged",
+        "robot2": "restart",
+        "robot3": "restart",
+    }
+    assert rows["robot2"].detail == "gets the fleet's DDS discovery server 10.0.0.1:7402"
 
 
 def test_with_zenoh_only_the_agent_whose_own_server_would_move_restarts_its_robots():
     before = expand_fleet(load_spec(TINY), [])
     view = build_view(running(before), [], 0.0)
-    view.discovery = {
-        "tiny": [
-            {"agent": "hostA", "server": "127.0.0.1:7402", "pid": 1},
-            {"agent": "hostB", "server": "127.0.0.1:7403", "pid": 2},
-        ]
-    }
+    view.servers_in_use = {"tiny": {"hostA": "127.0.0.1:7402", "hostB": "127.0.0.1:7403"}}
     plan = DiscoveryPlan("hostA", "127.0.0.1:7402", local={"hostA": "127.0.0.1:7402", "hostB": "127.0.0.1:7404"})
 
     rows = {row.robot: row for row in diff(before, view, discovery=plan)}
@@ -180,3 +193,13 @@ def test_with_zenoh_only_the_agent_whose_own_server_would_move_restarts_its_robo
         "robot3": "restart",
     }
     assert rows["robot2"].detail == "its DDS discovery server moves: 127.0.0.1:7403 -> 127.0.0.1:7404"
+
+
+def test_status_replies_say_which_server_each_agents_robots_use():
+    before = expand_fleet(load_spec(TINY), [])
+    replies = running(before)
+    replies[0].discovery_in_use = "10.0.0.1:7402"
+    replies[1].discovery_in_use = ""
+    view = build_view(replies, [], 0.0)
+    assert view.servers_in_use == {"tiny": {replies[0].agent.name: "10.0.0.1:7402", replies[1].agent.name: ""}}
+    assert view.only("tiny").servers_in_use == view.servers_in_use

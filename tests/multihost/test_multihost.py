@@ -399,3 +399,7 @@ def test_deploy_before_the_agents_are_up(router_only, tmp_path):
     assert set(robots) == {"world", *ROBOTS}
     servers = {d["agent"]: d["server"] for d in fleet.status()["discovery"]["lan"]}
     assert servers == {"sim_host": f"{fleet.lan.hosts['sim'].address}:{servers['sim_host'].rpartition(':')[2]}"}
+    # A deploy now (every agent online) would give them the address they found: nothing restarts.
+    diff = fleet.fleet("diff", str(tmp_path / "lan.yaml"), "--json")
+    assert diff.returncode == 0, diff.stdout + diff.stderr
+    assert {row["change"] for row in json.loads(diff.stdout)} == {"unchanged"}, diff.stdout
