@@ -110,11 +110,14 @@ def deploy(
     before = build_view(statuses, registries, time.time())
     outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before))
     requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
+    # What the router keeps: each desired state, for agents that are away, and the plan, for status.
+    desired = with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
+    plan = plan_record(expansion, outcome.generation)
     held = held_generation(requests, statuses)
     if held is not None:  # a no-op redeploy: the agents, the router's copy and the plan are as wanted
         outcome.generation, outcome.already_applied = held, True
     else:
-        _send(client, expansion, requests, registries, outcome)
+        _send(client, requests, desired, plan, outcome)
     wanted = {b.name for b in expansion.bundles if not isinstance(outcome.replies.get(b.agent), ControlError)}
     deadline = time.monotonic() + timeout
     record_again = time.monotonic() + RECORD_AGAIN
@@ -137,7 +140,7 @@ def deploy(
         if judged and not wait:
             break
         if not judged and time.monotonic() >= record_again:
-            _record(client, expansion, requests, registries, outcome.generation)
+            _record(client, desired, plan)
             record_again = time.monotonic() + RECORD_AGAIN
         if judged and (
             _settled(outcome.view, wanted, outcome.generation) or _hopeless(outcome.view, wanted, outcome.generation)
@@ -152,30 +155,24 @@ def deploy(
 
 def _send(
     client: ControlClient,
-    expansion: Expansion,
     requests: list[p.ApplyRequest],
-    registries: list[p.RegistryReply],
+    desired: list[p.ApplyRequest],
+    plan: p.PlanRecord,
     outcome: Outcome,
 ) -> None:
     outcome.replies = client.send_applies(requests)
     # After the applies: an agent that took its apply directly then holds this generation already.
-    _record(client, expansion, requests, registries, outcome.generation)
+    _record(client, desired, plan)
     for reply in outcome.replies.values():
         if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.current_generation > outcome.generation:
             outcome.superseded_by = max(outcome.superseded_by or 0, reply.current_generation)
 
 
-def _record(
-    client: ControlClient,
-    expansion: Expansion,
-    requests: list[p.ApplyRequest],
-    registries: list[p.RegistryReply],
-    generation: int,
-) -> None:
-    """Leave the deploy with the router: each desired state, for agents that are away, and the
-    plan, for status.  Leaving them twice is harmless (the router keeps the later generation)."""
-    client.put_desired(with_planned_agents(requests, registries, expansion.fleet, generation, expansion.domain_id))
-    client.put_plan(plan_record(expansion, generation))
+def _record(client: ControlClient, desired: list[p.ApplyRequest], plan: p.PlanRecord) -> None:
+    """Leave the deploy with the router.  Leaving it twice is harmless: the router keeps the
+    later generation, and the same one again replaces it with itself."""
+    client.put_desired(desired)
+    client.put_plan(plan)
 
 
 def _plan_taken(registries: list[p.RegistryReply], fleet: str, generation: int) -> bool:
