@@ -53,8 +53,10 @@ def requests_for(
     if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
         from fleet.dataplane.discovery import local_servers
 
-        placed = sorted({b.agent for b in expansion.bundles})
-        servers = discovery.local if discovery else local_servers(placed, expansion.domain_id)
+        if discovery is not None:
+            servers = discovery.local
+        else:
+            servers = local_servers(sorted({b.agent for b in expansion.bundles}), expansion.domain_id)
         for request in requests:
             request.transport = "zenoh"
             request.discovery_server = servers.get(request.agent)
