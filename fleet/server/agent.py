@@ -99,9 +99,9 @@ class Agent:
         self._units: dict[tuple[str, str], Unit] = {}
         self._reconciled: dict[str, int] = {}
         self._tokens: dict[str, Any] = {}
-        # (fleet, agent) -> the address of that fleet's discovery host, asked of it because the
-        # deploy could not say (see _discovery_server)
-        self._host_addresses: dict[tuple[str, str], str] = {}
+        # Fleets whose discovery host has told this run of the agent its address (the address
+        # itself is kept in the fleet's state, see _discovery_server): (fleet, host)
+        self._confirmed_hosts: set[tuple[str, str]] = set()
         # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
         self._services: dict[tuple[str, str], Any] = {}
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
@@ -332,6 +332,8 @@ class Agent:
                     if robot in changes.unchanged or robot in changes.hot_update
                 }
             state = FleetState(request=request, overrides=overrides)
+            if held and not request.discovery_server and held.request.discovery_host == request.discovery_host:
+                state.discovery_host_address = held.discovery_host_address  # still that host's
             self.store.save(state)  # persisted before we acknowledge
             self._fleets[request.fleet] = state
             # Units already running exactly this bundle are at the new generation now: saying so
@@ -385,8 +387,18 @@ class Agent:
             units = {name: unit for (f, name), unit in self._units.items() if f == fleet}
             overrides = {robot: dict(values) for robot, values in state.overrides.items()}
             generation = state.generation
-            env = self._unit_env(state.request.domain_id, self._discovery_server(state.request))
+            env = self._unit_env(state.request.domain_id, self._discovery_server(state))
         # A unit whose environment is not this one (the fleet's discovery server moved) restarts.
+        running = {name: unit for name, unit in units.items() if name in desired and unit.session is not None}
+        moved = sorted(name for name, unit in running.items() if unit.env != env)
+        if moved:
+            log.info(
+                "fleet %s: restarting %s in the fleet's new ROS environment (domain %s, DDS discovery server %s)",
+                fleet,
+                ", ".join(moved),
+                env["ROS_DOMAIN_ID"],
+                env.get("ROS_DISCOVERY_SERVER", "none"),
+            )
         changes = plan_changes(
             {name: unit.bundle for name, unit in units.items()},
             desired,
@@ -448,46 +460,51 @@ class Agent:
 
     # -- fleet services: discovery server, Zenoh bridge ----------------------------------------
 
-    def _wanted_services(self) -> dict[tuple[str, str], tuple[str, Any]]:
-        """(fleet, "discovery" | "bridge") -> (key, request) of every service this agent should run."""
-        wanted: dict[tuple[str, str], tuple[str, Any]] = {}
+    def _wanted_services(self) -> dict[tuple[str, str], tuple[str, FleetState]]:
+        """(fleet, "discovery" | "bridge" | "watch") -> (key, fleet state) of every service this
+        agent should run."""
+        wanted: dict[tuple[str, str], tuple[str, FleetState]] = {}
         with self._lock:
-            requests = [state.request for state in self._fleets.values() if state.request.bundles]
-        for request in requests:
-            server = self._discovery_server(request)
+            states = [state for state in self._fleets.values() if state.request.bundles]
+        for state in states:
+            request, server = state.request, self._discovery_server(state)
             if server and request.discovery_host == self.name:
-                wanted[(request.fleet, "discovery")] = (server, request)
+                wanted[(request.fleet, "discovery")] = (server, state)
             if request.transport == "zenoh" and (request.bridge.exports or request.bridge.imports):
                 routes = request.bridge.model_dump_json()
-                wanted[(request.fleet, "bridge")] = (f"{server}|{routes}", request)
+                wanted[(request.fleet, "bridge")] = (f"{server}|{routes}", state)
             if request.shared:
                 topics = ",".join(topic.name for topic in request.shared)
-                wanted[(request.fleet, "watch")] = (f"{server}|{topics}", request)
+                wanted[(request.fleet, "watch")] = (f"{server}|{topics}", state)
         return wanted
 
-    def _discovery_server(self, request: p.ApplyRequest) -> str | None:
+    def _discovery_server(self, state: FleetState) -> str | None:
         """The fleet's DDS discovery server ("address:port"), as its deploy said.  A deploy made
         while the host was offline names only the host: it serves at its own address, and the
         other agents use the address it gave when asked (None until then: their nodes stay on
-        this computer, and the fleet's robots are restarted with the server once it is found)."""
+        this computer, and the fleet's robots are restarted with the server once it is found).
+        That address is kept with the fleet's state, so that an agent started again starts its
+        robots with the server at once; it asks the host again all the same, in case it moved."""
+        request = state.request
         if request.discovery_server or request.discovery_host is None:
             return request.discovery_server
         from fleet.runtime.environment import discovery_server_port
 
-        if request.discovery_host == self.name:
-            address: str | None = self.info.address
-        else:
-            address = self._host_addresses.get((request.fleet, request.discovery_host))
+        address = self.info.address if request.discovery_host == self.name else state.discovery_host_address
         return f"{address}:{discovery_server_port(request.domain_id)}" if address else None
 
     def _find_discovery_hosts(self, session) -> None:
-        """Ask the discovery host of each fleet waiting for one for its address (its status
-        reply says it); a fleet whose host answers is reconciled with the server."""
+        """Ask the discovery host of each fleet that needs its address, and has not had it from
+        the host since this agent started, for that address (its status reply says it); a fleet
+        whose server changes is reconciled with the new one."""
         with self._lock:
             waiting = {
-                (fleet, state.request.discovery_host)
-                for fleet, state in self._fleets.items()
-                if state.request.bundles and state.request.discovery_host and not self._discovery_server(state.request)
+                (fleet, request.discovery_host)
+                for fleet, request in ((fleet, state.request) for fleet, state in self._fleets.items())
+                if request.bundles
+                and request.discovery_host not in (None, self.name)
+                and not request.discovery_server
+                and (fleet, request.discovery_host) not in self._confirmed_hosts
             }
         for fleet, host in sorted(waiting):
             try:
@@ -506,21 +523,29 @@ class Agent:
                 if p.address_problem(address):
                     log.error("agent %s reports no address others can reach: %s", host, p.address_problem(address))
                     break
-                log.info("fleet %s: its discovery server runs on agent %s at %s", fleet, host, address)
                 with self._lock:
-                    self._host_addresses[(fleet, host)] = address
+                    state = self._fleets.get(fleet)
+                    if state is None or state.request.discovery_host != host:
+                        break  # a deploy replaced the fleet's state meanwhile
+                    self._confirmed_hosts.add((fleet, host))
+                    if state.discovery_host_address == address:
+                        break
+                    state.discovery_host_address = address
+                    self.store.save(state)
+                log.info("fleet %s: its discovery server runs on agent %s at %s", fleet, host, address)
                 self._work.put(fleet)
                 break
 
-    def _service(self, fleet: str, kind: str, key: str, request: p.ApplyRequest):
+    def _service(self, fleet: str, kind: str, key: str, state: FleetState):
         from fleet.dataplane.discovery import discovery_server
         from fleet.runtime.processes import ServiceProcess
 
+        request = state.request
         directory = services_dir(self.store.root)
         if kind == "discovery":
             return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
         if kind == "watch":
-            return self._shared_watch(fleet, key, request)
+            return self._shared_watch(fleet, key, state)
         config = directory / f"{fleet}.bridge.json"
         directory.mkdir(parents=True, exist_ok=True)
         write_atomic(
@@ -537,10 +562,10 @@ class Agent:
             ),
         )
         command = [sys.executable, "-m", "fleet.dataplane.bridge", str(config)]
-        env = self._unit_env(request.domain_id, self._discovery_server(request))
+        env = self._unit_env(request.domain_id, self._discovery_server(state))
         return ServiceProcess(key, command, env, directory / f"{fleet}.bridge.log")
 
-    def _shared_watch(self, fleet: str, key: str, request: p.ApplyRequest):
+    def _shared_watch(self, fleet: str, key: str, state: FleetState):
         """The fleet's shared topic watch (fleet.dataplane.watch): a discovery super client."""
         from fleet.runtime.processes import ServiceProcess
 
@@ -549,9 +574,9 @@ class Agent:
         config = directory / f"{fleet}.watch.json"
         status_file = directory / f"{fleet}.watch.status.json"
         status_file.unlink(missing_ok=True)  # counts of an earlier watch are not this one's
-        topics = [topic.name for topic in request.shared]
+        topics = [topic.name for topic in state.request.shared]
         write_atomic(config, json.dumps({"fleet": fleet, "topics": topics, "status_file": str(status_file)}))
-        env = self._unit_env(request.domain_id, self._discovery_server(request))
+        env = self._unit_env(state.request.domain_id, self._discovery_server(state))
         if "ROS_DISCOVERY_SERVER" in env:
             env["ROS_SUPER_CLIENT"] = "TRUE"  # sees every publisher without subscribing
         command = [sys.executable, "-m", "fleet.dataplane.watch", str(config)]
@@ -577,10 +602,10 @@ class Agent:
                         with self._lock:
                             service = services.pop(name)
                         service.stop()
-                for name, (key, request) in wanted.items():
+                for name, (key, state) in wanted.items():
                     try:
                         if name not in services:
-                            service = self._service(*name, key, request)
+                            service = self._service(*name, key, state)
                             with self._lock:
                                 services[name] = service
                         services[name].keep_running()
@@ -636,7 +661,7 @@ class Agent:
         reply.reconciled_generation = reconciled
         reply.content_digest = state.content_digest
         reply.domain_id = state.request.domain_id
-        reply.discovery_in_use = self._discovery_server(state.request) or ""
+        reply.discovery_in_use = self._discovery_server(state) or ""
         if discovery is not None:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
         if bridge is not None:

@@ -25,6 +25,9 @@ class FleetState(BaseModel):
     request: ApplyRequest
     # Parameters set live with `fleet param set`: robot -> node fqn -> parameter -> value.
     overrides: dict[str, dict[str, dict[str, Any]]] = {}
+    # Where the fleet's discovery host said it is, when the deploy named the host only (it was
+    # offline then): kept so that robots started again get the server at once.
+    discovery_host_address: str = ""
 
     @property
     def fleet(self) -> str:

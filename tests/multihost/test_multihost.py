@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import psutil
 import pytest
 import yaml
 
@@ -144,6 +145,17 @@ class Fleet:
                 "--state-dir",
                 str(self.root / "agents" / agent),
             )
+
+    def stop_agent(self, agent: str) -> None:
+        """Stop an agent as its computer would on shutdown (its robots stop with it)."""
+        process = self.processes[agent]
+        process.terminate()
+        process.wait(timeout=40)
+
+    def restart_agent(self, agent: str) -> None:
+        """Stop an agent and start it again on its state."""
+        self.stop_agent(agent)
+        self.start_agents(agent)
 
     def fleet(self, *args: str, timeout: float = 180) -> subprocess.CompletedProcess:
         return subprocess.run(
@@ -371,7 +383,8 @@ def test_deploy_before_the_agents_are_up(router_only, tmp_path):
     """kubectl-style: the desired state waits at the router.  No agent is online to tell where the
     fleet's DDS discovery server will run, so its host (the world's agent) runs it at its own
     address once up, and the other agents find that address then: started before it, their
-    robots first run without the server and are restarted with it."""
+    robots first run without the server and are restarted with it.  An agent started again
+    later keeps that address: its robots get the server at once, even with the host down."""
     fleet = router_only
     deploy = poll(
         lambda: fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--no-wait", timeout=60),
@@ -403,3 +416,31 @@ def test_deploy_before_the_agents_are_up(router_only, tmp_path):
     diff = fleet.fleet("diff", str(tmp_path / "lan.yaml"), "--json")
     assert diff.returncode == 0, diff.stdout + diff.stderr
     assert {row["change"] for row in json.loads(diff.stdout)} == {"unchanged"}, diff.stdout
+
+    # The world's computer and rack_b go down, and rack_b comes back first: it starts its robots
+    # with the server the host gave it before (not confined to rack_b until the host answers),
+    # and they keep running, not restarted, when the host is back.
+    fleet.stop_agent("sim_host")
+    fleet.restart_agent("rack_b")
+    back = fleet.wait(
+        lambda robots: all(
+            robots.get(name, {}).get("nodes") and all(node.get("pid") for node in robots[name]["nodes"])
+            for name in ("b1", "b2")
+        ),
+        60,
+        "rack_b's robots started again while the world's agent is down",
+    )
+    pids = node_pids(back, "b1", "b2")
+    for pid in (pid for group in pids.values() for pid in group):
+        assert psutil.Process(pid).environ().get("ROS_DISCOVERY_SERVER") == servers["sim_host"], pid
+    fleet.start_agents("sim_host")
+    robots = fleet.wait(
+        lambda robots: all(robots.get(name, {}).get("state") == "running" for name in ("world", *ROBOTS)),
+        120,
+        "every robot running once the world's agent is back",
+    )
+    assert node_pids(robots, "b1", "b2") == pids
+
+
+def node_pids(robots: dict[str, dict], *names: str) -> dict[str, list[int]]:
+    return {name: sorted(node["pid"] for node in robots[name]["nodes"]) for name in names}
