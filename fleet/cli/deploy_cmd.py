@@ -87,6 +87,7 @@ def deploy(
     from fleet.cli.render_cmd import load_and_expand
     from fleet.client import deploy as deploy_fleet
     from fleet.client.local_daemon import connect_or_start
+    from fleet.errors import EXIT_USAGE
 
     expansion = load_and_expand(spec, set_)  # a bad spec raises here, before anything is sent
     if dry_run:
@@ -101,12 +102,25 @@ def deploy(
             outcome = deploy_fleet(control, expansion, wait=wait, timeout=timeout, on_progress=progress.update)
     if json:
         print_json(outcome.to_json())
+    elif outcome.problems:
+        _print_problems(outcome.problems)
     else:
         _print_outcome(outcome, console())
+    if outcome.problems:
+        raise typer.Exit(EXIT_USAGE)  # the spec's templates name what is not there: bad input
     if not outcome.ok and (
         wait or outcome.timed_out or outcome.unreachable or outcome.refused or outcome.superseded_by
     ):
         raise typer.Exit(1)
+
+
+def _print_problems(problems: dict[str, dict[str, str]]) -> None:
+    from fleet.errors import error_line
+
+    for agent_name, robots in sorted(problems.items()):
+        for robot, problem in sorted(robots.items()):
+            typer.echo(error_line(f"{robot} cannot start on agent {agent_name}: {problem}"), err=True)
+    typer.echo("nothing was deployed: every robot runs as it was", err=True)
 
 
 class _DeployProgress:

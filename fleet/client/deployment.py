@@ -48,6 +48,8 @@ class Outcome:
     # Every agent already held exactly this desired state: nothing was sent (`replies` is empty
     # and `generation` is the one they hold).
     already_applied: bool = False
+    # agent -> robot -> why its unit could not start there: nothing was sent to any agent.
+    problems: dict[str, dict[str, str]] = field(default_factory=dict)
 
     @property
     def unreachable(self) -> dict[str, str]:
@@ -76,10 +78,11 @@ class Outcome:
             "ok": self.ok,
             "generation": self.generation,
             "nothing_changed": self.nothing_changed,
-            "sent": not self.already_applied,
+            "sent": not self.already_applied and not self.problems,
             "superseded_by": self.superseded_by,
             "timed_out": self.timed_out,
             "recorded": self.recorded,
+            "problems": self.problems,
             "discovery": None
             if self.discovery is None
             else {"host": self.discovery.host, "server": self.discovery.server, "note": self.discovery.note},
@@ -90,7 +93,8 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return (
-            not self.unreachable
+            not self.problems
+            and not self.unreachable
             and not self.refused
             and self.superseded_by is None
             and not self.timed_out
@@ -117,6 +121,9 @@ def deploy(
     if held is not None:  # a no-op redeploy: the agents, the router's copy and the plan are as wanted
         outcome.generation, outcome.already_applied = held, True
     else:
+        outcome.problems = _problems(client, requests)
+        if outcome.problems:
+            return outcome  # nothing sent: the fleet runs as it was
         _send(client, requests, desired, plan, outcome)
     wanted = {b.name for b in expansion.bundles if not isinstance(outcome.replies.get(b.agent), ControlError)}
     deadline = time.monotonic() + timeout
@@ -151,6 +158,17 @@ def deploy(
             break
         time.sleep(POLL_INTERVAL)
     return outcome
+
+
+def _problems(client: ControlClient, requests: list[p.ApplyRequest]) -> dict[str, dict[str, str]]:
+    """Ask every agent whether it could start the robots it would start or change: agent -> robot
+    -> problem.  An agent that does not answer is not asked again here: sending to it says so."""
+    checks = client.send_applies([request.model_copy(update={"check_only": True}) for request in requests])
+    return {
+        agent: reply.problems
+        for agent, reply in checks.items()
+        if isinstance(reply, p.ApplyReply) and not reply.accepted and reply.problems
+    }
 
 
 def _send(

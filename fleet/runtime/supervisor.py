@@ -28,7 +28,7 @@ from pathlib import Path
 from fleet.errors import FleetError, LaunchFileError, Location
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
-from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, load_launch_file
+from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
 from fleet.runtime.node_log import ProcessOutput
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
@@ -172,6 +172,11 @@ class LaunchSession:
             self._close_wake_pipe()
             raise self._start_error
 
+    def check(self) -> None:
+        """Raise what start() would raise about the launch file (FleetError); start and write
+        nothing."""
+        self._prepare(check_only=True)
+
     def status(self) -> list[NodeStatus]:
         now = time.monotonic()
         result = []
@@ -272,7 +277,7 @@ class LaunchSession:
         env.update(extra)
         return env
 
-    def _prepare(self) -> list[ProcessSpec]:
+    def _prepare(self, check_only: bool = False) -> list[ProcessSpec]:
         with contextlib.suppress(OSError):  # a read-only environment: fleet_nodes lookups will say what is missing
             ament.ensure_ament_prefix()
         ros2 = self._ros2()
@@ -291,6 +296,9 @@ class LaunchSession:
             return [self._ros2_spec(ros2)]
         self.backend = "embedded"
         try:
+            if check_only:  # the same reading, without writing the inline parameter files
+                check_launch_file(self.path, self.launch_args, self.base_env, ament.ament_prefix_path(self.base_env))
+                return []
             self.plan = load_launch_file(
                 self.path,
                 self.launch_args,

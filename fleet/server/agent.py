@@ -241,8 +241,36 @@ class Agent:
 
     def _handle_apply(self, query):
         request = self._check_apply(_payload(query), query.key_expr)
-        reply = self.apply(request)
+        reply = self.check(request) if request.check_only else self.apply(request)
         yield p.apply_key(request.fleet, self.name), p.encode(reply)
+
+    def check(self, request: p.ApplyRequest) -> p.ApplyReply:
+        """Whether every robot this apply would start or change could start here; nothing changes."""
+        from fleet.server.units import launch_problem
+
+        with self._lock:
+            held = self._fleets.get(request.fleet)
+            running = {
+                name: (unit.bundle.digest, unit.bundle.hot_digest)
+                for (fleet, name), unit in self._units.items()
+                if fleet == request.fleet and unit.session is not None
+            }
+        env = self._unit_env(request.domain_id, None)
+        problems = {}
+        for bundle in request.bundles:
+            if running.get(bundle.name) != (bundle.digest, bundle.hot_digest):
+                problem = launch_problem(bundle, env)
+                if problem:
+                    problems[bundle.name] = problem
+        return p.ApplyReply(
+            fleet=request.fleet,
+            agent=self.name,
+            generation=request.generation,
+            accepted=not problems,
+            current_generation=held.generation if held else 0,
+            reason="; ".join(f"{name}: {problem}" for name, problem in sorted(problems.items())),
+            problems=problems,
+        )
 
     def _check_apply(self, payload: bytes | None, key) -> p.ApplyRequest:
         """Decode and validate an apply (received, or fetched from the router); ProtocolError if bad."""

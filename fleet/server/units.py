@@ -8,11 +8,12 @@ and respawned nodes get new ones.
 
 from __future__ import annotations
 
+import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fleet.errors import SpecError
+from fleet.errors import FleetError, SpecError
 from fleet.files import write_atomic
 from fleet.rules import WORLD_STATUS_FILE, unit_log_dir
 from fleet.spec.yaml_source import safe_load
@@ -31,6 +32,33 @@ UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
 if TYPE_CHECKING:
     from fleet.runtime.hosting import HostPool
     from fleet.runtime.supervisor import LaunchSession
+
+
+def launch_session(bundle: BundleMessage, directory: Path, env: dict[str, str]) -> LaunchSession:
+    """The session that runs the bundle whose files are in `directory` (not started)."""
+    from fleet.runtime.supervisor import LaunchSession
+
+    isolation = str(bundle.options.get("isolation", "process"))
+    return LaunchSession(directory / bundle.entry, {}, env, unit_log_dir(directory), isolation, backend="auto")
+
+
+def launch_problem(bundle: BundleMessage, env: dict[str, str]) -> str | None:
+    """Why this bundle's unit could not start on this computer (its launch file names a package,
+    an executable or a file that is not here, ...), None if it could.  `fleet deploy` asks every
+    agent this before it changes anything, so a bad template leaves the robots running as they
+    were.  The files go to a scratch directory named after the robot: the problem then reads
+    robot1/robot1.launch.yaml:LINE:COL, where `fleet render -o DIR` writes that file."""
+    with tempfile.TemporaryDirectory(prefix="fleet-check-") as scratch:
+        directory = Path(scratch) / bundle.name
+        directory.mkdir()
+        for name, text in bundle.files.items():
+            (directory / check_file_name(name)).write_text(text)
+        try:
+            launch_session(bundle, directory, env).check()
+        except FleetError as error:  # whole: the CLI makes it one line, once
+            problem = error.message if error.location is None else f"{error.location}: {error.message}"
+            return problem.replace(f"{scratch}/", "")
+    return None
 
 
 class Unit:
@@ -83,21 +111,12 @@ class Unit:
     # -- processes ------------------------------------------------------------------------------
 
     def start(self, overrides: dict[str, dict[str, Any]]) -> None:
-        from fleet.runtime.supervisor import LaunchSession
-
         self.error = ""
         self.seen_running = False
         try:
             self.write_files(overrides)
             self.log_dir.mkdir(parents=True, exist_ok=True)
-            self.session = LaunchSession(
-                self.directory / self.bundle.entry,
-                launch_args={},
-                env=self.env,
-                log_dir=self.log_dir,
-                isolation=str(self.bundle.options.get("isolation", "process")),
-                backend="auto",
-            )
+            self.session = launch_session(self.bundle, self.directory, self.env)
             self.session.start()
             hosted = self.session.hosted_nodes()
             if hosted:

@@ -311,6 +311,9 @@ class ApplyRequest(Message):
     bridge: BridgeRoutes = BridgeRoutes()
     # Topics this agent's robots share (templates' share(...)): the agent watches their publishers.
     shared: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
+    # Only ask whether the agent could run it (ApplyReply.problems), changing nothing: a deploy
+    # asks every agent first, so that one robot's bad launch file leaves the whole fleet as it was.
+    check_only: bool = False
 
     @field_validator("fleet", "agent")
     @classmethod
@@ -333,7 +336,7 @@ class ApplyRequest(Message):
         """Hash of what this desired state asks for: equal on two requests when applying the one
         after the other changes nothing (the generation and the send time are left out; each
         bundle counts by its digests, which cover its files)."""
-        content = self.model_dump(mode="json", exclude={"v", "kind", "generation", "sent_at", "bundles"})
+        content = self.model_dump(mode="json", exclude={"v", "kind", "generation", "sent_at", "bundles", "check_only"})
         content["bundles"] = [(bundle.name, bundle.digest, bundle.hot_digest) for bundle in self.bundles]
         return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 
@@ -369,6 +372,7 @@ class ApplyReply(Message):
     current_generation: int  # the generation the agent holds after this request
     reason: str = ""  # why it was refused (e.g. superseded by a later generation)
     changes: Changes = Changes()
+    problems: dict[str, str] = {}  # robot -> why its unit could not start here (check_only)
 
 
 # ---------------------------------------------------------------------------------------------

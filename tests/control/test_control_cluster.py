@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import signal
 import threading
 import time
@@ -21,7 +22,7 @@ from fleet.plan import new_generation, requests_for
 from fleet.spec import load_spec
 from fleet.testing.poll import poll
 from fleet.wire import protocol as p
-from tests.control.control_helpers import robot, wait_processes_gone
+from tests.control.control_helpers import DATA, robot, wait_processes_gone
 
 pytestmark = pytest.mark.integration
 
@@ -200,6 +201,34 @@ def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
     assert after == before
     assert not list(cluster.root.rglob("evil.sh"))
     assert cluster.processes["agent-hostA"].poll() is None
+
+
+def test_a_robot_that_cannot_start_on_its_agent_leaves_the_whole_fleet_as_it_was(cluster, tmp_path):
+    """kubectl-style admission: every agent is asked first whether it could start what it would
+    start or change; one robot's launch file naming an executable hostB does not have stops the
+    whole deploy, robot1's change on hostA included."""
+    cluster.deploy(cluster.spec())
+    before = _settled_rows(cluster, "tiny")
+    templates = tmp_path / "templates"
+    shutil.copytree(DATA / "templates", templates)
+    tiny = (templates / "tiny.launch.yaml.j2").read_text()
+    (templates / "typo.launch.yaml.j2").write_text(tiny.replace("exec: sleeper", "exec: sleepr"))
+    shutil.copy(templates / "tiny.params.yaml", templates / "typo.params.yaml")
+    robots = [{"name": "robot1"}, {"name": "robot2", "agent": "hostB"}, {"name": "robot3", "agent": "hostB"}]
+    robots[2]["template"] = "typo"
+    spec = cluster.spec(robots=robots, templates=str(templates))
+    args = ("deploy", str(spec), "--set", "robot1.sleeper.period=2.0", "--connect", cluster.endpoint)
+    done = cluster.cli(*args)
+    assert done.returncode == 2, done.stdout + done.stderr
+    problem, verdict = done.stderr.splitlines()
+    assert problem.startswith("fleet: error: robot3 cannot start on agent hostB: robot3/robot3.launch.yaml:"), problem
+    assert "executable 'sleepr' of package 'fleet_test' not found" in problem, problem
+    assert verdict == "nothing was deployed: every robot runs as it was"
+    as_json = cluster.cli(*args, "--json")
+    assert as_json.returncode == 2, as_json.stdout + as_json.stderr
+    data = json.loads(as_json.stdout)
+    assert data["sent"] is False and data["ok"] is False and set(data["problems"]) == {"hostB"}
+    assert _settled_rows(cluster, "tiny") == before
 
 
 def test_older_generation_is_refused_and_told(cluster):
