@@ -80,6 +80,17 @@ def test_output_directory_that_is_a_file(tmp_path, capsys):
     assert output.read_text() == "mine"
 
 
+def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
+    output = tmp_path / "out"
+    output.mkdir()
+    (output / "notes.txt").write_text("mine")
+    line = one_error_line(capsys, ["render", str(spec), "-o", str(output)])
+    assert f"{output}: output directory is not empty and holds no earlier render (no .fleet-render)" in line
+    assert [path.name for path in output.iterdir()] == ["notes.txt"]
+
+
 def test_launch_file_alias_bomb_is_refused_fast(tmp_path, capsys):
     launch = tmp_path / "bomb.launch.yaml"
     launch.write_text(BOMB)

@@ -19,6 +19,34 @@ def render_to(tmp_path: Path, spec: Path, *extra: str) -> Path:
     return out
 
 
+def test_render_over_an_earlier_render_leaves_only_the_new_files(tmp_path):
+    """Robots gone from the spec and formats no longer asked for leave no file behind; what
+    others put in the directory stays, and the list cannot be made to remove files outside it."""
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    (out / "robot1" / "notes.txt").write_text("mine")
+    (out / "README").write_text("mine")
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep")
+    with (out / ".fleet-render").open("a") as listing:
+        listing.write(f"../victim.txt\n{victim}\nrobot1/../../victim.txt\n")
+    spec = tmp_path / "three.yaml"
+    spec.write_text((FLEETS / "two_robots.yaml").read_text().replace("name: robot2", "name: robot3"))
+    render_to(tmp_path, spec, "--format", "yaml")
+    files = sorted(str(path.relative_to(out)) for path in out.rglob("*") if path.is_file())
+    assert files == [
+        ".fleet-render",
+        "README",
+        "robot1/notes.txt",
+        "robot1/robot1.launch.yaml",
+        "robot1/robot1.params.yaml",
+        "robot3/robot3.launch.yaml",
+        "robot3/robot3.params.yaml",
+        "world/world.launch.yaml",
+        "world/world.yaml",
+    ]
+    assert not (out / "robot2").exists() and victim.read_text() == "keep"
+
+
 def launch_nodes(actions: list, namespace: str = "/") -> list[tuple[str, dict]]:
     """(pushed namespace, node body) for every node in a parsed YAML launch document."""
     found = []
