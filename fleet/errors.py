@@ -107,6 +107,11 @@ class LaunchFileError(FleetError):
     """A launch description uses something the embedded runner cannot run."""
 
 
+class NeedsRos2Launch(LaunchFileError):
+    """A launch file `ros2 launch` would run, and the embedded runner does not (a Python launch
+    file, an action, attribute or substitution it leaves to the ros2 backend)."""
+
+
 class ControlError(FleetError):
     """A control-plane request failed (agent unreachable, refused, timed out)."""
 

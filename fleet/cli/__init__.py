@@ -76,7 +76,9 @@ def main(argv: list[str] | None = None) -> None:
         from fleet.cli.output import print_error
 
         command = error.ctx.command_path if getattr(error, "ctx", None) else "fleet"
-        print_error(FleetError(f"{command}: {error.format_message()}", Location(COMMAND_LINE)))
+        # typer checks values with pydantic, whose messages begin "Value error, ".
+        message = error.format_message().replace("Value error, ", "")
+        print_error(FleetError(f"{command}: {message}", Location(COMMAND_LINE)))
         sys.exit(EXIT_USAGE)
     except (typer.Abort, EOFError):
         sys.exit(EXIT_FAILURE)
