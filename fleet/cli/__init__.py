@@ -34,8 +34,27 @@ app = typer.Typer(
 )
 
 
+def _print_version(asked: bool) -> None:
+    if not asked:
+        return
+    from importlib.metadata import PackageNotFoundError, version
+
+    import fleet
+
+    try:
+        installed = version("fleet")
+    except PackageNotFoundError:  # a checkout run without installing it
+        installed = fleet.__version__
+    print(f"fleet {installed}")
+    raise typer.Exit()
+
+
 @app.callback()
-def _fleet() -> None:
+def _fleet(
+    _version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True, help="Print fleet's version and exit."
+    ),
+) -> None:
     """Multi-robot fleet orchestrator for ROS 2 Jazzy.
 
     Typical flow: fleet render SPEC (see what a spec expands to), fleet deploy SPEC, fleet status.
