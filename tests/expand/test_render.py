@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import ast
+import json
 import textwrap
 from pathlib import Path
 
 import yaml
 
 from fleet.expand import expand_fleet
+from fleet.expand.templating import builtin_template_dirs
 from fleet.spec import parse_spec
 from tests.checkout import FLEETS, run_fleet
 
@@ -171,6 +173,18 @@ def test_explain_cli(tmp_path, capsys):
     assert data["value"] == 1.2
     assert [layer["layer"] for layer in data["layers"]] == ["template", "defaults", "robot", "--set"]
     assert [layer["value"] for layer in data["layers"]] == [0.5, 0.4, 0.8, 1.2]
+
+
+def test_explain_names_the_files_fleet_found_relative_to_the_working_directory(capsys, monkeypatch):
+    """As a compiler names the files it found: the built-in template from the directory holding
+    it (`templates/...` from the checkout), the spec as it was given."""
+    templates = builtin_template_dirs()[0]
+    monkeypatch.chdir(templates.parent)
+    spec = FLEETS / "two_robots.yaml"
+    assert run_fleet(["render", str(spec), "--explain", "robot2.controller.max_speed", "--json"]) == 0
+    sources = [layer["source"] for layer in json.loads(capsys.readouterr().out)["layers"]]
+    assert sources[0].startswith(f"{templates.name}/diff_drive.params.yaml:")
+    assert sources[1].startswith(f"{spec}:")
 
 
 def test_dry_plan_json_lists_robots_nodes_parameters(capsys):
