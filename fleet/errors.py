@@ -56,6 +56,16 @@ def error_line(problem: str) -> str:
     return PREFIX + one_line(problem, MAX_LINE - len(PREFIX))
 
 
+def relative_to_cwd(path: Path) -> Path:
+    """`path` relative to the working directory when it lies inside it, else as it is: files fleet
+    finds itself (the built-in templates) are named in messages as a compiler names the files it
+    found, `templates/diff_drive.params.yaml:7:14` from the checkout."""
+    try:
+        return path.relative_to(Path.cwd()) if path.is_absolute() else path
+    except (ValueError, OSError):  # outside it, or the working directory is gone
+        return path
+
+
 @dataclass
 class Location:
     file: str | Path | None = None
@@ -105,6 +115,11 @@ class TemplateError(FleetError):
 
 class LaunchFileError(FleetError):
     """A launch description uses something the embedded runner cannot run."""
+
+
+class NeedsRos2Launch(LaunchFileError):
+    """A launch file `ros2 launch` would run, and the embedded runner does not (a Python launch
+    file, an action, attribute or substitution it leaves to the ros2 backend)."""
 
 
 class ControlError(FleetError):

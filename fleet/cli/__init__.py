@@ -34,8 +34,27 @@ app = typer.Typer(
 )
 
 
+def _print_version(asked: bool) -> None:
+    if not asked:
+        return
+    from importlib.metadata import PackageNotFoundError, version
+
+    import fleet
+
+    try:
+        installed = version("fleet")
+    except PackageNotFoundError:  # a checkout run without installing it
+        installed = fleet.__version__
+    print(f"fleet {installed}")
+    raise typer.Exit()
+
+
 @app.callback()
-def _fleet() -> None:
+def _fleet(
+    _version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True, help="Print fleet's version and exit."
+    ),
+) -> None:
     """Multi-robot fleet orchestrator for ROS 2 Jazzy.
 
     Typical flow: fleet render SPEC (see what a spec expands to), fleet deploy SPEC, fleet status.
@@ -76,7 +95,9 @@ def main(argv: list[str] | None = None) -> None:
         from fleet.cli.output import print_error
 
         command = error.ctx.command_path if getattr(error, "ctx", None) else "fleet"
-        print_error(FleetError(f"{command}: {error.format_message()}", Location(COMMAND_LINE)))
+        # typer checks values with pydantic, whose messages begin "Value error, ".
+        message = error.format_message().replace("Value error, ", "")
+        print_error(FleetError(f"{command}: {message}", Location(COMMAND_LINE)))
         sys.exit(EXIT_USAGE)
     except (typer.Abort, EOFError):
         sys.exit(EXIT_FAILURE)

@@ -3,11 +3,24 @@
 from __future__ import annotations
 
 import sys
+from enum import StrEnum
 from pathlib import Path
 
 import typer
 
 from fleet.errors import EXIT_FAILURE, FleetError, Location
+
+
+class Isolation(StrEnum):
+    # `agent` is not here: its host processes belong to an agent (fleet deploy), which `fleet run` is not.
+    process = "process"
+    robot = "robot"
+
+
+class Backend(StrEnum):
+    auto = "auto"
+    embedded = "embedded"
+    ros2 = "ros2"
 
 
 def _launch_args(items: list[str]) -> dict[str, str]:
@@ -42,13 +55,15 @@ def _summary(session) -> str:
 def run(
     file: Path = typer.Argument(..., help="A ROS 2 YAML launch file (.launch.yaml)."),
     launch_args: list[str] = typer.Argument(None, help="Launch arguments, name:=value."),
-    isolation: str = typer.Option(
-        "process",
+    # Choices: typer refuses another value (exit 2) before anything is read, also with -s and -p.
+    isolation: Isolation = typer.Option(
+        Isolation.process,
         "--isolation",
-        help="process: one process per node; robot: the robot's fleet_nodes share one process.",
+        help="process: one process per node; robot: the robot's fleet_nodes share one process "
+        "(agent isolation is an agent's: fleet deploy).",
     ),
-    backend: str = typer.Option(
-        "auto", "--backend", help="auto (ros2 launch when installed, else embedded), embedded, ros2."
+    backend: Backend = typer.Option(
+        Backend.auto, "--backend", help="auto (ros2 launch when installed, else embedded), embedded, ros2."
     ),
     log_dir: Path = typer.Option(None, "--log-dir", help="Where node logs go (default ~/.ros/log/...)."),
     show_args: bool = typer.Option(
@@ -64,7 +79,6 @@ def run(
     import signal
     import threading
 
-    from fleet.runtime.isolation import HOSTED
     from fleet.runtime.supervisor import LaunchSession
 
     if show_args or print_description:
@@ -74,14 +88,12 @@ def run(
         description = read_launch_file(file)
         print(arguments_text(description) if show_args else description_text(description))
         return
-    if isolation == HOSTED:  # its host processes belong to an agent, which `fleet run` is not
-        raise FleetError(f"isolation '{HOSTED}' is run by an agent (fleet deploy); here use 'robot'")
     session = LaunchSession(
         file,
         launch_args=_launch_args(launch_args or []),
         log_dir=log_dir,
-        isolation=isolation,
-        backend=backend,
+        isolation=isolation.value,
+        backend=backend.value,
         on_line=_print_line,
     )
     interrupted = threading.Event()

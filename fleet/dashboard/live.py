@@ -34,6 +34,11 @@ READ_PERIOD = 0.5  # s between reads: the page is never more than this (plus a r
 REQUEST_TIMEOUT = 5.0
 
 
+class UnknownRobot(ControlError):
+    """The fleet has no robot of that name (the dashboard answers 404, where a robot that is there
+    and cannot answer is the fleet's failure, 502)."""
+
+
 class LiveFleet:
     def __init__(self, client: ControlClient, fleet: str | None = None):
         self.client = client
@@ -137,8 +142,10 @@ class LiveFleet:
 
     def _row(self, fleet: str, robot: str) -> RobotRow:
         rows = self._view.find_robot(robot, fleet) if self._view else []
-        if not rows or rows[0].state in ("pending", "offline"):
-            raise ControlError(f"no running robot named {robot!r} in fleet {fleet}")
+        if not rows:
+            raise UnknownRobot(f"no robot named {robot!r} in fleet {fleet}")
+        if rows[0].state in ("pending", "offline"):
+            raise ControlError(f"robot {robot!r} of fleet {fleet} is not running ({rows[0].state})")
         return rows[0]
 
     def _agent_of(self, fleet: str, robot: str) -> str:

@@ -29,7 +29,7 @@ from starlette.responses import FileResponse, JSONResponse, StreamingResponse
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from fleet.dashboard.live import LiveFleet
+from fleet.dashboard.live import LiveFleet, UnknownRobot
 from fleet.errors import ControlError, FleetError
 
 log = logging.getLogger("fleet.dashboard")
@@ -138,10 +138,13 @@ def create_app(live: LiveFleet) -> Starlette:
 
 
 async def _answer(function, *args: Any) -> JSONResponse:
-    """A blocking request to the fleet, in a worker thread; its failure as {"error": ...}."""
+    """A blocking request to the fleet, in a worker thread; its failure as {"error": ...}: 404 for
+    a robot the fleet does not have, 502 when the fleet failed to answer, 400 for a bad request."""
     try:
         return JSONResponse(await asyncio.to_thread(function, *args))
-    except ControlError as error:
+    except UnknownRobot as error:
+        return JSONResponse({"error": str(error)}, status_code=404)
+    except ControlError as error:  # the agent or the router did not answer, or refused
         return JSONResponse({"error": str(error)}, status_code=502)
     except ValueError as error:  # pydantic refused the request (a bad parameter name)
         return JSONResponse({"error": str(error).splitlines()[0]}, status_code=400)

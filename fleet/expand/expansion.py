@@ -12,7 +12,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fleet.errors import Location, SpecError, TemplateError
+from fleet.errors import Location, SpecError, TemplateError, relative_to_cwd
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, outline
@@ -120,7 +120,8 @@ def template_set_for(spec: FleetSpec) -> TemplateSet:
             raise SpecError(
                 f"templates directory {spec.templates} does not exist", _spec_location(spec, ("templates",))
             )
-    return TemplateSet(directories + builtin_template_dirs())
+    # Read within this command, whose working directory stays: relative paths name them in messages.
+    return TemplateSet([relative_to_cwd(directory) for directory in directories + builtin_template_dirs()])
 
 
 def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Expansion:

@@ -15,10 +15,10 @@ from typing import Any
 
 import yaml
 
-from fleet.errors import LaunchFileError, Location, SpecError
+from fleet.errors import LaunchFileError, Location, NeedsRos2Launch, SpecError
 from fleet.launchfile import description as d
 from fleet.launchfile.entities import XML, YAML, Entity, xml_actions, yaml_actions, yaml_document_actions
-from fleet.launchfile.substitutions import SubstitutionSyntax, Text, literal, parse_substitutions
+from fleet.launchfile.substitutions import Ros2OnlySubstitution, SubstitutionSyntax, Text, literal, parse_substitutions
 from fleet.spec.yaml_source import SourceMap, read_input
 
 _CONDITION = {"if", "unless"}
@@ -81,16 +81,16 @@ _NEEDS_ROS2 = "needs the ros2 backend (--backend ros2)"
 
 def read_launch_file(path: Path) -> d.LaunchDescription:
     path = Path(path).absolute()
+    try:
+        text = read_input(path, "launch")  # first: a file that is not there is said to be missing
+    except SpecError as problem:
+        raise LaunchFileError(f"cannot read launch file: {problem.message}", problem.location) from None
     if path.name.endswith(".py"):
-        raise LaunchFileError(
+        raise NeedsRos2Launch(
             "a Python launch file runs only under `ros2 launch`: it " + _NEEDS_ROS2 + "; the embedded runner "
             "reads .launch.yaml and .launch.xml files",
             Location(path),
         )
-    try:
-        text = read_input(path, "launch")
-    except SpecError as problem:
-        raise LaunchFileError(f"cannot read launch file: {problem.message}", problem.location) from None
     return read_launch_text(text, path)
 
 
@@ -101,7 +101,7 @@ def read_launch_text(text: str, path: Path) -> d.LaunchDescription:
     elif name.endswith(".xml"):
         entities = xml_actions(text, str(path))
     else:
-        raise LaunchFileError(
+        raise NeedsRos2Launch(
             "the embedded runner reads YAML (.launch.yaml) and XML (.launch.xml) launch files; "
             "run other launch files with `ros2 launch` (--backend ros2)",
             Location(path),
@@ -131,7 +131,8 @@ def _parse(value: str, where: Location) -> Text:
     try:
         return parse_substitutions(value)
     except SubstitutionSyntax as problem:
-        raise LaunchFileError(str(problem), where) from None
+        error = NeedsRos2Launch if isinstance(problem, Ros2OnlySubstitution) else LaunchFileError
+        raise error(str(problem), where) from None
 
 
 def _optional_text(entity: Entity, name: str) -> Text | None:
@@ -148,7 +149,7 @@ def _check_keys(entity: Entity, allowed: set[str]) -> None:
         if key in allowed:
             continue
         if key in ROS2_ATTRIBUTES.get(entity.kind, set()):
-            raise LaunchFileError(f"attribute '{key}' of '{entity.kind}' {_NEEDS_ROS2}", entity.where_of(key))
+            raise NeedsRos2Launch(f"attribute '{key}' of '{entity.kind}' {_NEEDS_ROS2}", entity.where_of(key))
         listed = ", ".join(sorted(allowed))
         raise LaunchFileError(f"unknown key '{key}' in '{entity.kind}' (allowed: {listed})", entity.where_of(key))
 
@@ -213,7 +214,7 @@ def _children(entity: Entity) -> list[d.Action]:
 def _action(entity: Entity) -> d.Action:
     kind = entity.kind
     if kind in ROS2_ACTIONS:
-        raise LaunchFileError(f"action '{kind}' {_NEEDS_ROS2}", entity.where)
+        raise NeedsRos2Launch(f"action '{kind}' {_NEEDS_ROS2}", entity.where)
     if kind not in ATTRIBUTES:
         raise LaunchFileError(f"unknown action '{kind}'", entity.where)
     body_is_list = entity.frontend == YAML and isinstance(getattr(entity, "body", None), list)
@@ -319,7 +320,7 @@ def _forwarding(entity: Entity) -> bool:
     forwarding = _boolean(entity, "forwarding", True)
     if forwarding is not True:
         # A group that starts from an empty scope (forwarding false) is rare in practice.
-        raise LaunchFileError(f"'forwarding' other than true {_NEEDS_ROS2}", entity.where_of("forwarding"))
+        raise NeedsRos2Launch(f"'forwarding' other than true {_NEEDS_ROS2}", entity.where_of("forwarding"))
     return True
 
 
@@ -382,7 +383,7 @@ def _params(entity: Entity) -> list[d.ParamFile | d.InlineParam]:
 def _inline_param(item: Entity) -> d.InlineParam:
     keys = set(item.attributes())
     if "type" in keys:
-        raise LaunchFileError(f"parameter attribute 'type' {_NEEDS_ROS2}", item.where_of("type"))
+        raise NeedsRos2Launch(f"parameter attribute 'type' {_NEEDS_ROS2}", item.where_of("type"))
     _check_keys(item, {"name", "value", "param"})
     _required(item, "name")
     nested = item.entities("param")

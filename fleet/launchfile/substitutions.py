@@ -58,6 +58,10 @@ class SubstitutionSyntax(Exception):
         self.offset = offset
 
 
+class Ros2OnlySubstitution(SubstitutionSyntax):
+    """A substitution of ROS2_ONLY: `ros2 launch` would read the text."""
+
+
 _NAME = re.compile(r"\s*([A-Za-z][A-Za-z0-9_-]*)")
 
 
@@ -115,7 +119,7 @@ def _parse_subst(text: str, index: int) -> tuple[Subst, int]:
         arg, index = _parse_parts(text, index, inside=True)
         args.append(tuple(arg))
     if kind in ROS2_ONLY:
-        raise SubstitutionSyntax(
+        raise Ros2OnlySubstitution(
             f"substitution '$({kind})' is not run by the embedded runner; it needs the ros2 backend (--backend ros2)",
             begin,
         )

@@ -24,7 +24,7 @@ from typing import Any
 
 import yaml
 
-from fleet.errors import FleetError, LaunchFileError, Location
+from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
 from fleet.launchfile import description as d
 from fleet.launchfile import read_launch_file
 from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
@@ -375,7 +375,7 @@ class _Interpreter:
                 included = self.read_cache[target] = read_launch_file(target)
             except LaunchFileError as problem:
                 if "Python launch file" in problem.message:  # said where the include is
-                    raise LaunchFileError(problem.message, where) from None
+                    raise NeedsRos2Launch(problem.message, where) from None
                 raise
         given = []
         for name, value in action.arguments:

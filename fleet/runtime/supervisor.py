@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from fleet.errors import FleetError, LaunchFileError, Location
+from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
@@ -306,7 +306,7 @@ class LaunchSession:
                 params_dir=self.log_dir / "params",
                 ament_search_path=ament.ament_prefix_path(self.base_env),
             )
-        except LaunchFileError as problem:
+        except NeedsRos2Launch as problem:  # only then would ros2 launch have helped
             if self.requested_backend == "auto" and ros2 is None:
                 problem.message += " (and `ros2` is not on PATH to run it with ros2 launch)"
             raise

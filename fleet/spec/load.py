@@ -198,6 +198,12 @@ def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> Spec
         message = f"unknown key {unknown!r}" + (f" in {_parent(loc)}" if loc[:-1] else "")
         message += f" (did you mean {hint[0]!r}?)" if hint else f" (allowed: {', '.join(allowed)})"
         return SpecError(message, source.locate(loc, key=True))
+    if kind in ("tuple_type", "too_long") or (kind == "missing" and isinstance(problem["loc"][-1], int)):
+        # A tuple of the schema (position, size), written as a YAML list: pydantic reports a short
+        # one as its first absent item "missing", which would read as the key itself missing.
+        got = problem["input"]
+        count = f"a list of {len(got)}" if isinstance(got, tuple) else _describe(got)
+        return SpecError(f"{where}: must be a list of {_tuple_length(loc)} numbers, got {count}", source.locate(loc))
     if kind == "missing":
         return SpecError(
             f"missing required key {loc[-1]!r}" + (f" in {_parent(loc)}" if loc[:-1] else ""), source.locate(loc[:-1])
@@ -251,8 +257,8 @@ def _describe(value: Any) -> str:
     return f"{type(value).__name__} {value!r}"
 
 
-def _fields_at(loc: DocPath) -> list[str]:
-    """Field names of the model found at `loc` in the spec schema (for did-you-mean)."""
+def _annotation_at(loc: DocPath) -> Any:
+    """The type the spec schema declares at `loc`."""
     annotation: Any = FleetSpec
     for part in loc:
         model = _model_in(annotation)
@@ -261,10 +267,23 @@ def _fields_at(loc: DocPath) -> list[str]:
             continue
         args = [a for a in typing.get_args(annotation) if a is not type(None)]
         annotation = args[-1] if args else annotation
-    model = _model_in(annotation)
+    return annotation
+
+
+def _fields_at(loc: DocPath) -> list[str]:
+    """Field names of the model found at `loc` in the spec schema (for did-you-mean)."""
+    model = _model_in(_annotation_at(loc))
     if model is None:
         return []
     return [name for name, field in model.model_fields.items() if not field.exclude]
+
+
+def _tuple_length(loc: DocPath) -> int:
+    """How many items the tuple declared at `loc` (`tuple[float, float]`, maybe `| None`) has."""
+    annotation = _annotation_at(loc)
+    if typing.get_origin(annotation) is not tuple:
+        annotation = next(a for a in typing.get_args(annotation) if typing.get_origin(a) is tuple)
+    return len(typing.get_args(annotation))
 
 
 def _model_in(annotation: Any) -> type[BaseModel] | None:

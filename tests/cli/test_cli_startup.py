@@ -32,6 +32,14 @@ def test_help_lists_the_commands():
         assert command in result.stdout
 
 
+def test_version_is_the_installed_one():
+    from importlib.metadata import version
+
+    result = subprocess.run([sys.executable, "-m", "fleet", "--version"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == f"fleet {version('fleet')}\n"
+
+
 # What `fleet status` imports to ask, build and print the view: the protocol's pydantic and
 # zenoh, nothing of what expansion, the runtime or the world need.
 STATUS_PROBE = """

@@ -80,6 +80,51 @@ def test_output_directory_that_is_a_file(tmp_path, capsys):
     assert output.read_text() == "mine"
 
 
+def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
+    output = tmp_path / "out"
+    output.mkdir()
+    (output / "notes.txt").write_text("mine")
+    line = one_error_line(capsys, ["render", str(spec), "-o", str(output)])
+    assert f"{output}: output directory is not empty and holds no earlier render (no .fleet-render)" in line
+    assert [path.name for path in output.iterdir()] == ["notes.txt"]
+
+
+def test_run_names_the_problem_and_offers_ros2_launch_only_where_it_runs_the_file(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PATH", "/usr/bin:/bin")  # no `ros2`: the embedded runner
+    no_ros2 = " (and `ros2` is not on PATH to run it with ros2 launch)"
+    missing = tmp_path / "robot1.py"
+    line = one_error_line(capsys, ["run", str(missing)])
+    assert line == f"fleet: error: {missing}: cannot read launch file: no such launch file"
+    bad = tmp_path / "bad.launch.yaml"
+    bad.write_text("launch: [\n")
+    line = one_error_line(capsys, ["run", str(bad)])
+    assert "invalid YAML" in line and no_ros2 not in line
+    python = tmp_path / "robot1.launch.py"
+    python.write_text("")
+    line = one_error_line(capsys, ["run", str(python)])
+    assert "a Python launch file runs only under `ros2 launch`" in line and line.endswith(no_ros2)
+    ros2_only = tmp_path / "stop.launch.yaml"
+    ros2_only.write_text("launch:\n- log: {message: $(anon x)}\n")
+    assert one_error_line(capsys, ["run", str(ros2_only)]).endswith(no_ros2)
+
+
+@pytest.mark.parametrize("mode", [["-s"], ["-p"], []])
+def test_run_options_are_checked_before_the_file_is_read(tmp_path, capsys, mode):
+    launch = tmp_path / "a.launch.yaml"
+    launch.write_text("launch: []\n")
+    for option, value, allowed in (
+        ("--isolation", "vm", "'process', 'robot'"),
+        ("--isolation", "agent", "'process', 'robot'"),
+        ("--backend", "docker", "'auto', 'embedded', 'ros2'"),
+    ):
+        code, stdout, stderr = run_cli(["run", str(launch), option, value, *mode], capsys)
+        assert code == 2 and stdout == ""
+        problem = f"Invalid value for '{option}': '{value}' is not one of {allowed}."
+        assert stderr == f"fleet: error: <command line>: fleet run: {problem}\n"
+
+
 def test_launch_file_alias_bomb_is_refused_fast(tmp_path, capsys):
     launch = tmp_path / "bomb.launch.yaml"
     launch.write_text(BOMB)

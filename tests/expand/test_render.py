@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import ast
+import json
 import textwrap
 from pathlib import Path
 
 import yaml
 
 from fleet.expand import expand_fleet
+from fleet.expand.templating import builtin_template_dirs
 from fleet.spec import parse_spec
 from tests.checkout import FLEETS, run_fleet
 
@@ -17,6 +19,34 @@ def render_to(tmp_path: Path, spec: Path, *extra: str) -> Path:
     out = tmp_path / "out"
     assert run_fleet(["render", str(spec), "-o", str(out), *extra]) == 0
     return out
+
+
+def test_render_over_an_earlier_render_leaves_only_the_new_files(tmp_path):
+    """Robots gone from the spec and formats no longer asked for leave no file behind; what
+    others put in the directory stays, and the list cannot be made to remove files outside it."""
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    (out / "robot1" / "notes.txt").write_text("mine")
+    (out / "README").write_text("mine")
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep")
+    with (out / ".fleet-render").open("a") as listing:
+        listing.write(f"../victim.txt\n{victim}\nrobot1/../../victim.txt\n")
+    spec = tmp_path / "three.yaml"
+    spec.write_text((FLEETS / "two_robots.yaml").read_text().replace("name: robot2", "name: robot3"))
+    render_to(tmp_path, spec, "--format", "yaml")
+    files = sorted(str(path.relative_to(out)) for path in out.rglob("*") if path.is_file())
+    assert files == [
+        ".fleet-render",
+        "README",
+        "robot1/notes.txt",
+        "robot1/robot1.launch.yaml",
+        "robot1/robot1.params.yaml",
+        "robot3/robot3.launch.yaml",
+        "robot3/robot3.params.yaml",
+        "world/world.launch.yaml",
+        "world/world.yaml",
+    ]
+    assert not (out / "robot2").exists() and victim.read_text() == "keep"
 
 
 def launch_nodes(actions: list, namespace: str = "/") -> list[tuple[str, dict]]:
@@ -143,6 +173,18 @@ def test_explain_cli(tmp_path, capsys):
     assert data["value"] == 1.2
     assert [layer["layer"] for layer in data["layers"]] == ["template", "defaults", "robot", "--set"]
     assert [layer["value"] for layer in data["layers"]] == [0.5, 0.4, 0.8, 1.2]
+
+
+def test_explain_names_the_files_fleet_found_relative_to_the_working_directory(capsys, monkeypatch):
+    """As a compiler names the files it found: the built-in template from the directory holding
+    it (`templates/...` from the checkout), the spec as it was given."""
+    templates = builtin_template_dirs()[0]
+    monkeypatch.chdir(templates.parent)
+    spec = FLEETS / "two_robots.yaml"
+    assert run_fleet(["render", str(spec), "--explain", "robot2.controller.max_speed", "--json"]) == 0
+    sources = [layer["source"] for layer in json.loads(capsys.readouterr().out)["layers"]]
+    assert sources[0].startswith(f"{templates.name}/diff_drive.params.yaml:")
+    assert sources[1].startswith(f"{spec}:")
 
 
 def test_dry_plan_json_lists_robots_nodes_parameters(capsys):

@@ -91,6 +91,33 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             "fleet: demo\nworld:\n  obstacles: [{name: a, type: box, position: [0, 0]}]\nrobots: [{name: r1}]\n",
             [":3:", "needs size"],
         ),
+        # A list of the wrong length is reported at the list, the same too short as too long (a
+        # short one once read as the key missing).
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: a, type: box, position: [0, 0], size: [0.5, 0.5]}\n"
+            "robots: [{name: r1}]\n",
+            [":4:52:", "world.obstacles[0].size: must be a list of 3 numbers, got a list of 2"],
+        ),
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: a, type: box, size: [1, 1, 1], position: [2.5]}\n"
+            "robots: [{name: r1}]\n",
+            [":4:55:", "world.obstacles[0].position: must be a list of 2 numbers, got a list of 1"],
+        ),
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: a, type: box, size: [1, 1, 1], position: []}\n"
+            "robots: [{name: r1}]\n",
+            [":4:55:", "position: must be a list of 2 numbers, got a list of 0"],
+        ),
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: a, type: box, size: [1, 1, 1, 1], position: [0, 0]}\n"
+            "robots: [{name: r1}]\n",
+            [":4:34:", "world.obstacles[0].size: must be a list of 3 numbers, got a list of 4"],
+        ),
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: a, type: box, size: [1, 1, 1], position: here}\n"
+            "robots: [{name: r1}]\n",
+            [":4:55:", "position: must be a list of 2 numbers, got string 'here'"],
+        ),
         (
             "fleet: demo\nrobots:\n  - name: robot1\n  - name: robot1b\n    namespace: /robot1\n",
             [":5:", "namespace /robot1 already used"],
