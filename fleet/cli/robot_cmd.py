@@ -9,11 +9,11 @@ from typing import Literal
 
 import typer
 
-from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client, fleet_option
 from fleet.wire.limits import MAX_LOG_LINES
 
 RobotArgument = typer.Argument(..., help="Robot name (or `world`).")
-FleetOfRobotOption = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it.")
+FleetOfRobotOption = fleet_option("Fleet of the robot, when several have it.")  # -f is `logs --follow`
 NodeArgument = typer.Argument(..., help="Node name, as in the robot's launch description.")
 ParameterArgument = typer.Argument(..., help="Parameter name (nested ones with dots: limits.turn).")
 
