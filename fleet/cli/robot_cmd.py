@@ -69,18 +69,14 @@ def logs(
 
 
 def _parse_value(text: str):
-    """VALUE as YAML, like `ros2 param set`: 0.8, true, [1.0, 2.0], hello."""
+    """VALUE typed as `--set` types it, as rcl reads a parameter file: 0.8, 1e-1, true, [1.0, 2.0], hello."""
     from fleet.errors import FleetError, Location
-    from fleet.spec.params import value_problem
-    from fleet.spec.yaml_source import parse_scalar
+    from fleet.spec.params import command_line_value
 
     try:
-        value = parse_scalar(text)
+        return command_line_value(text)
     except ValueError as error:
-        raise FleetError(f"cannot parse value: {error}", Location(f"VALUE {text}")) from None
-    if problem := value_problem(value):
-        raise FleetError(problem, Location(f"VALUE {text}"))
-    return value
+        raise FleetError(str(error), Location(f"VALUE {text}")) from None
 
 
 def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], value, fleet, connect, zenoh_config):
@@ -124,7 +120,7 @@ def param_set(
     robot: str = RobotArgument,
     node: str = NodeArgument,
     name: str = ParameterArgument,
-    value: str = typer.Argument(..., help="New value, as YAML (0.8, true, [1.0, 2.0])."),
+    value: str = typer.Argument(..., help="New value, typed as --set types it (0.8, 1e-1, true, [1.0, 2.0])."),
     fleet: str | None = FleetOfRobotOption,
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,

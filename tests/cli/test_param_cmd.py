@@ -1,0 +1,52 @@
+"""`fleet param get/set/list` with the fleet faked: how values are typed, shown and refused.
+(tests/control/test_control_params.py runs them against real nodes.)"""
+
+from __future__ import annotations
+
+import pytest
+
+from fleet.expand.parameters import parse_override
+from fleet.wire import protocol as p
+from tests.spec.test_bad_input import run_cli
+
+
+class FakeFleet:
+    """A router with one agent running robot1, whose nodes answer with `reply` (a ParamReply, or
+    the same value that was set)."""
+
+    def __init__(self, reply: p.ParamReply | None = None):
+        self.reply = reply
+        self.requests: list[p.ParamRequest] = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        pass
+
+    def param(self, agent: str, request: p.ParamRequest) -> p.ParamReply:
+        self.requests.append(request)
+        return self.reply or p.ParamReply(ok=True, value=request.value)
+
+
+@pytest.fixture
+def fleet(monkeypatch):
+    fake = FakeFleet()
+    monkeypatch.setattr("fleet.client.connect", lambda *args: fake)
+    monkeypatch.setattr("fleet.client.locate_robot", lambda client, robot, fleet: ("two_robots", "local"))
+    return fake
+
+
+@pytest.mark.parametrize("text", ["1e-1", "5.", "1_000", "no", "On", "0x1f", "[1.0, 2e0]", "", "hello"])
+def test_set_types_its_value_as_set_does(fleet, capsys, text):
+    code, _, stderr = run_cli(["param", "set", "robot1", "controller", "max_speed", text], capsys)
+    assert code == 0, stderr
+    sent = fleet.requests[-1].value
+    expected = parse_override(f"robot1.controller.max_speed={text}").value
+    assert sent == expected and type(sent) is type(expected), (text, sent, expected)
+
+
+def test_a_double_written_with_an_exponent_is_sent_as_a_double(fleet, capsys):
+    code, out, _ = run_cli(["param", "set", "robot1", "controller", "max_speed", "1e-1"], capsys)
+    assert code == 0 and fleet.requests[-1].value == 0.1 and isinstance(fleet.requests[-1].value, float)
+    assert out == "robot1/controller: max_speed = 0.1 (recorded on the agent)\n"
