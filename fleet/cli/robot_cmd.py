@@ -96,6 +96,14 @@ def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], 
         return control.param(agent_name, request)
 
 
+def _shown(value) -> str:
+    """A parameter's value as ROS YAML writes it (true, 0.5, [1.0, 2.0]); None is what the agent
+    sends for a type fleet does not carry."""
+    from fleet.spec.rcl_types import value_text
+
+    return "(not shown: a byte array)" if value is None else value_text(value)
+
+
 def param_get(
     robot: str = RobotArgument,
     node: str = NodeArgument,
@@ -105,15 +113,13 @@ def param_get(
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Print the current value of a node's parameter."""
-    import json
-
     reply = _param(robot, node, name, "get", None, fleet, connect, zenoh_config)
     if not reply.ok:
         from fleet.errors import error_line
 
         typer.echo(error_line(reply.reason), err=True)
         raise typer.Exit(1)
-    typer.echo(json.dumps(reply.value))
+    typer.echo(_shown(reply.value))
 
 
 def param_set(
@@ -126,13 +132,14 @@ def param_set(
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Set a node's parameter live; kept across restarts until the robot's spec changes."""
-    reply = _param(robot, node, name, "set", _parse_value(value), fleet, connect, zenoh_config)
+    new = _parse_value(value)
+    reply = _param(robot, node, name, "set", new, fleet, connect, zenoh_config)
     if not reply.ok:
         from fleet.errors import error_line
 
-        typer.echo(error_line(f"{robot}/{node} refused {name}={value}: {reply.reason}"), err=True)
+        typer.echo(error_line(f"{robot}/{node} refused {name}={_shown(new)}: {reply.reason}"), err=True)
         raise typer.Exit(1)
-    typer.echo(f"{robot}/{node}: {name} = {reply.value!r} (recorded on the agent)")
+    typer.echo(f"{robot}/{node}: {name} = {_shown(reply.value)} (recorded on the agent)")
 
 
 def param_list(
@@ -145,7 +152,6 @@ def param_list(
 ) -> None:
     """Print every parameter of a robot's nodes as they are now (like `ros2 param dump`)."""
     from fleet.cli.output import console, print_json, table
-    from fleet.cli.plan_view import format_value
     from fleet.errors import error_line
 
     reply = _param(robot, node or "", "", "list", None, fleet, connect, zenoh_config)
@@ -161,8 +167,7 @@ def param_list(
         for node_name, values in sorted(reply.parameters.items()):
             live = set(reply.set_live.get(node_name, []))
             for name, value in values.items():
-                shown = "(not shown: a byte array)" if value is None else format_value(value)
-                rows.add_row(node_name, name, shown, "set live" if name in live else "")
+                rows.add_row(node_name, name, _shown(value), "set live" if name in live else "")
         console().print(rows)
     if reply.unanswered:
         for node_name, why in sorted(reply.unanswered.items()):

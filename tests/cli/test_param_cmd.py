@@ -50,3 +50,34 @@ def test_a_double_written_with_an_exponent_is_sent_as_a_double(fleet, capsys):
     code, out, _ = run_cli(["param", "set", "robot1", "controller", "max_speed", "1e-1"], capsys)
     assert code == 0 and fleet.requests[-1].value == 0.1 and isinstance(fleet.requests[-1].value, float)
     assert out == "robot1/controller: max_speed = 0.1 (recorded on the agent)\n"
+
+
+def test_values_are_printed_as_ros_yaml_writes_them(fleet, capsys):
+    """As `param list` and `ros2 param dump` show them: true, not Python's True."""
+    shown_as: list[tuple[p.ParamValue, str]] = [
+        (False, "false"),
+        (0.5, "0.5"),
+        ("true", "'true'"),
+        ([1.0, 2.0], "[1.0, 2.0]"),
+    ]
+    for value, shown in shown_as:
+        fleet.reply = p.ParamReply(ok=True, value=value)
+        code, out, _ = run_cli(["param", "get", "robot1", "controller", "loop"], capsys)
+        assert (code, out) == (0, f"{shown}\n")
+    fleet.reply = None
+    code, out, _ = run_cli(["param", "set", "robot1", "controller", "loop", "no"], capsys)
+    assert (code, out) == (0, "robot1/controller: loop = false (recorded on the agent)\n")
+    fleet.reply = p.ParamReply(ok=True, parameters={"controller": {"loop": True, "frame": "no"}})
+    code, out, _ = run_cli(["param", "list", "robot1"], capsys)
+    rows = {line.split()[1]: line.split()[2] for line in out.splitlines() if line.startswith("controller")}
+    assert code == 0 and rows == {"loop": "true", "frame": "'no'"}, out
+
+
+def test_an_empty_value_is_an_empty_string_and_a_refusal_shows_it(fleet, capsys):
+    fleet.reply = p.ParamReply(ok=False, reason="Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'")
+    code, _, stderr = run_cli(["param", "set", "robot1", "controller", "max_speed", ""], capsys)
+    assert fleet.requests[-1].value == ""
+    assert code == 1 and stderr == (
+        "fleet: error: robot1/controller refused max_speed='': "
+        "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'\n"
+    )
