@@ -111,3 +111,10 @@ class ControlError(FleetError):
     """A control-plane request failed (agent unreachable, refused, timed out)."""
 
     exit_code = EXIT_FAILURE
+
+
+class BadRequest(ControlError):
+    """The fleet refused a request for what the command named (a robot or node it does not have, a
+    name it cannot take): the user's input is wrong, so it is bad input (exit 2), found out by asking."""
+
+    exit_code = EXIT_USAGE

@@ -73,6 +73,12 @@ class ProtocolError(ValueError):
         self.code = code
 
 
+# The codes of refusals of what a request names or holds (a robot or node the agent does not run,
+# a name it cannot take): the asker's input is wrong, not the fleet.  The client's error for them
+# is a BadRequest (exit 2); every other code is a failure of the request (exit 1).
+INPUT_ERRORS = frozenset({"invalid", "not_found"})
+
+
 # ---------------------------------------------------------------------------------------------
 # Keys
 
