@@ -86,14 +86,14 @@ def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], 
     from fleet.errors import COMMAND_LINE, FleetError, Location
     from fleet.wire import protocol as p
 
+    try:  # checked before connecting: bad input is refused before anything is asked
+        request = p.ParamRequest(fleet="", robot=robot, node=node, name=name, op=op, value=value)
+    except ValidationError as error:
+        problem = p.short_validation_error(error)
+        raise FleetError(f"invalid parameter request: {problem}", Location(COMMAND_LINE)) from None
     with client(connect, zenoh_config) as control:
-        fleet_name, agent_name = locate_robot(control, robot, fleet)
-        try:
-            request = p.ParamRequest(fleet=fleet_name, robot=robot, node=node, name=name, op=op, value=value)
-        except ValidationError as error:
-            problem = p.short_validation_error(error)
-            raise FleetError(f"invalid parameter request: {problem}", Location(COMMAND_LINE)) from None
-        return control.param(agent_name, request)
+        fleet_name, agent_name = locate_robot(control, robot, fleet)  # the request's fleet is the robot's
+        return control.param(agent_name, request.model_copy(update={"fleet": fleet_name}))
 
 
 def _shown(value) -> str:

@@ -81,3 +81,22 @@ def test_an_empty_value_is_an_empty_string_and_a_refusal_shows_it(fleet, capsys)
         "fleet: error: robot1/controller refused max_speed='': "
         "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'\n"
     )
+
+
+@pytest.mark.parametrize(
+    "args, problem",
+    [
+        (["get", "robot1", "controller", ""], "a get needs a node and a parameter name"),
+        (["set", "robot1", "", "max_speed", "1"], "a set needs a node and a parameter name"),
+        (["get", "robot1", "controller", "max speed"], "name: String should match pattern"),
+    ],
+)
+def test_a_request_that_names_no_parameter_is_one_clean_line(monkeypatch, capsys, args, problem):
+    def no_connection(*args, **kwargs):
+        raise AssertionError("bad input must be refused before connecting")
+
+    monkeypatch.setattr("fleet.client.connect", no_connection)
+    code, out, err = run_cli(["param", *args], capsys)
+    assert (code, out) == (2, "")
+    assert err.startswith(f"fleet: error: <command line>: invalid parameter request: {problem}"), err
+    assert err.count("\n") == 1 and "Value error" not in err
