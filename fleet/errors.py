@@ -10,8 +10,10 @@ characters, so a hostile spec can neither forge a second error line nor drive th
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 EXIT_USAGE = 2  # bad input: nothing was done
 EXIT_FAILURE = 1  # the command ran but the fleet is not in the desired state
@@ -49,6 +51,12 @@ def one_line(text: str, limit: int = MAX_LINE) -> str:
             return text
     head = (limit - 5) * 2 // 3
     return f"{text[:head]} ... {text[len(text) - (limit - 5 - head) :]}"
+
+
+def validation_message(problem: Mapping[str, Any]) -> str:
+    """The message of one problem pydantic found (an item of ValidationError.errors()): a
+    validator's own words come without the "Value error, " pydantic puts before them."""
+    return str(problem["msg"]).removeprefix("Value error, ")
 
 
 def error_line(problem: str) -> str:
@@ -126,3 +134,10 @@ class ControlError(FleetError):
     """A control-plane request failed (agent unreachable, refused, timed out)."""
 
     exit_code = EXIT_FAILURE
+
+
+class BadRequest(ControlError):
+    """The fleet refused a request for what the command named (a robot or node it does not have, a
+    name it cannot take): the user's input is wrong, so it is bad input (exit 2), found out by asking."""
+
+    exit_code = EXIT_USAGE

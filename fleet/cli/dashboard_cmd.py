@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client, fleet_option
 
 
 def register(app: typer.Typer) -> None:
@@ -20,7 +20,7 @@ def dashboard(
         help="Address to serve on; other than loopback, other computers see the fleet (no login).",
     ),
     port: int = typer.Option(8080, "--port", "-p", min=0, max=65535, help="Port to serve on; 0 picks a free one."),
-    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Only this fleet."),
+    fleet: str | None = fleet_option("Only this fleet.", "-f"),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client, fleet_option
 
 if TYPE_CHECKING:
     from rich.progress import TaskID
@@ -26,7 +26,7 @@ def register(app: typer.Typer) -> None:
 
 def down(
     spec: Path | None = typer.Argument(None, help="Fleet spec whose fleet to stop."),
-    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Name of the fleet to stop."),
+    fleet: str | None = fleet_option("Name of the fleet to stop.", "-f"),
     all_: bool = typer.Option(False, "--all", help="Stop every fleet, then the local daemon."),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,

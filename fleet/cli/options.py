@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -16,6 +16,22 @@ ZENOH_CONFIG_HELP = "Zenoh JSON5 config file for TLS, user/password or access co
 
 ConnectOption = typer.Option(None, "--connect", "-c", help=CONNECT_HELP)
 ZenohConfigOption = typer.Option(None, "--zenoh-config", help=ZENOH_CONFIG_HELP)
+
+
+def fleet_option(help: str, *short: str) -> Any:
+    """The --fleet option of every command that takes one (`short`: its "-f", where that is free)."""
+    return typer.Option(None, "--fleet", *short, help=help, callback=_checked_fleet_name)
+
+
+def _checked_fleet_name(name: str | None) -> str | None:
+    """A fleet name becomes a chunk of Zenoh keys: a wildcard (`*`) or `$` in it would match other
+    fleets' keys or make an invalid key, so it is refused as bad input before anything is asked."""
+    from fleet.errors import FleetError
+    from fleet.rules import key_name_problem
+
+    if name is not None and (problem := key_name_problem(name)):
+        raise FleetError(f"--fleet: {problem}")
+    return name
 
 
 def client(connect: str | None, zenoh_config: Path | None) -> ControlClient:

@@ -6,6 +6,7 @@ from typing import Any
 
 from fleet.expand import Expansion
 from fleet.expand.parameters import Setting
+from fleet.spec.rcl_types import value_text
 
 
 def plan_data(expansion: Expansion) -> dict[str, Any]:
@@ -90,7 +91,7 @@ def print_plan(expansion: Expansion, console) -> None:
         for node, values in robot["parameters"].items():
             for name, entry in values.items():
                 style = "" if entry["from"] == "template" else "bold"
-                parameters.add_row(robot["name"], node, name, format_value(entry["value"]), entry["from"], style=style)
+                parameters.add_row(robot["name"], node, name, value_text(entry["value"]), entry["from"], style=style)
     console.print(parameters)
     for warning in data["warnings"]:
         console.print(labelled("warning:", "yellow", warning))
@@ -129,21 +130,13 @@ def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:
 def print_explain(data: dict[str, Any], console) -> None:
     from fleet.cli.output import table as make_table
 
-    layers = make_table("layer", "value", "source", "", title=f"{data['parameter']} = {format_value(data['value'])}")
+    layers = make_table("layer", "value", "source", "", title=f"{data['parameter']} = {value_text(data['value'])}")
     for layer in data["layers"]:
         layers.add_row(
             layer["layer"],
-            format_value(layer["value"]),
+            value_text(layer["value"]),
             layer["source"],
             "effective" if layer["effective"] else "overridden",
             style="bold" if layer["effective"] else "dim",
         )
     console.print(layers)
-
-
-def format_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, list):
-        return "[" + ", ".join(format_value(v) for v in value) + "]"
-    return str(value)

@@ -9,11 +9,11 @@ from typing import Literal
 
 import typer
 
-from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client, fleet_option
 from fleet.wire.limits import MAX_LOG_LINES
 
 RobotArgument = typer.Argument(..., help="Robot name (or `world`).")
-FleetOfRobotOption = typer.Option(None, "--fleet", help="Fleet of the robot, when several have it.")
+FleetOfRobotOption = fleet_option("Fleet of the robot, when several have it.")  # -f is `logs --follow`
 NodeArgument = typer.Argument(..., help="Node name, as in the robot's launch description.")
 ParameterArgument = typer.Argument(..., help="Parameter name (nested ones with dots: limits.turn).")
 
@@ -69,18 +69,14 @@ def logs(
 
 
 def _parse_value(text: str):
-    """VALUE as YAML, like `ros2 param set`: 0.8, true, [1.0, 2.0], hello."""
+    """VALUE typed as `--set` types it, as rcl reads a parameter file: 0.8, 1e-1, true, [1.0, 2.0], hello."""
     from fleet.errors import FleetError, Location
-    from fleet.spec.params import value_problem
-    from fleet.spec.yaml_source import parse_scalar
+    from fleet.spec.params import command_line_value
 
     try:
-        value = parse_scalar(text)
+        return command_line_value(text)
     except ValueError as error:
-        raise FleetError(f"cannot parse value: {error}", Location(f"VALUE {text}")) from None
-    if problem := value_problem(value):
-        raise FleetError(problem, Location(f"VALUE {text}"))
-    return value
+        raise FleetError(str(error), Location(f"VALUE {text}")) from None
 
 
 def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], value, fleet, connect, zenoh_config):
@@ -90,14 +86,22 @@ def _param(robot: str, node: str, name: str, op: Literal["get", "set", "list"], 
     from fleet.errors import COMMAND_LINE, FleetError, Location
     from fleet.wire import protocol as p
 
+    try:  # checked before connecting: bad input is refused before anything is asked
+        request = p.ParamRequest(fleet="", robot=robot, node=node, name=name, op=op, value=value)
+    except ValidationError as error:
+        problem = p.short_validation_error(error)
+        raise FleetError(f"invalid parameter request: {problem}", Location(COMMAND_LINE)) from None
     with client(connect, zenoh_config) as control:
-        fleet_name, agent_name = locate_robot(control, robot, fleet)
-        try:
-            request = p.ParamRequest(fleet=fleet_name, robot=robot, node=node, name=name, op=op, value=value)
-        except ValidationError as error:
-            problem = p.short_validation_error(error)
-            raise FleetError(f"invalid parameter request: {problem}", Location(COMMAND_LINE)) from None
-        return control.param(agent_name, request)
+        fleet_name, agent_name = locate_robot(control, robot, fleet)  # the request's fleet is the robot's
+        return control.param(agent_name, request.model_copy(update={"fleet": fleet_name}))
+
+
+def _shown(value) -> str:
+    """A parameter's value as ROS YAML writes it (true, 0.5, [1.0, 2.0]); None is what the agent
+    sends for a type fleet does not carry."""
+    from fleet.spec.rcl_types import value_text
+
+    return "(not shown: a byte array)" if value is None else value_text(value)
 
 
 def param_get(
@@ -109,34 +113,33 @@ def param_get(
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Print the current value of a node's parameter."""
-    import json
-
     reply = _param(robot, node, name, "get", None, fleet, connect, zenoh_config)
     if not reply.ok:
         from fleet.errors import error_line
 
         typer.echo(error_line(reply.reason), err=True)
         raise typer.Exit(1)
-    typer.echo(json.dumps(reply.value))
+    typer.echo(_shown(reply.value))
 
 
 def param_set(
     robot: str = RobotArgument,
     node: str = NodeArgument,
     name: str = ParameterArgument,
-    value: str = typer.Argument(..., help="New value, as YAML (0.8, true, [1.0, 2.0])."),
+    value: str = typer.Argument(..., help="New value, typed as --set types it (0.8, 1e-1, true, [1.0, 2.0])."),
     fleet: str | None = FleetOfRobotOption,
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
     """Set a node's parameter live; kept across restarts until the robot's spec changes."""
-    reply = _param(robot, node, name, "set", _parse_value(value), fleet, connect, zenoh_config)
+    new = _parse_value(value)
+    reply = _param(robot, node, name, "set", new, fleet, connect, zenoh_config)
     if not reply.ok:
         from fleet.errors import error_line
 
-        typer.echo(error_line(f"{robot}/{node} refused {name}={value}: {reply.reason}"), err=True)
+        typer.echo(error_line(f"{robot}/{node} refused {name}={_shown(new)}: {reply.reason}"), err=True)
         raise typer.Exit(1)
-    typer.echo(f"{robot}/{node}: {name} = {reply.value!r} (recorded on the agent)")
+    typer.echo(f"{robot}/{node}: {name} = {_shown(reply.value)} (recorded on the agent)")
 
 
 def param_list(
@@ -149,7 +152,6 @@ def param_list(
 ) -> None:
     """Print every parameter of a robot's nodes as they are now (like `ros2 param dump`)."""
     from fleet.cli.output import console, print_json, table
-    from fleet.cli.plan_view import format_value
     from fleet.errors import error_line
 
     reply = _param(robot, node or "", "", "list", None, fleet, connect, zenoh_config)
@@ -165,8 +167,7 @@ def param_list(
         for node_name, values in sorted(reply.parameters.items()):
             live = set(reply.set_live.get(node_name, []))
             for name, value in values.items():
-                shown = "(not shown: a byte array)" if value is None else format_value(value)
-                rows.add_row(node_name, name, shown, "set live" if name in live else "")
+                rows.add_row(node_name, name, _shown(value), "set live" if name in live else "")
         console().print(rows)
     if reply.unanswered:
         for node_name, why in sorted(reply.unanswered.items()):

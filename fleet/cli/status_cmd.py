@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.options import ConnectOption, ZenohConfigOption, client
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client, fleet_option
 
 
 def register(app: typer.Typer) -> None:
@@ -16,7 +16,7 @@ def register(app: typer.Typer) -> None:
 
 
 def status(
-    fleet: str | None = typer.Option(None, "--fleet", "-f", help="Only this fleet."),
+    fleet: str | None = fleet_option("Only this fleet.", "-f"),
     json: bool = typer.Option(False, "--json", help="Print JSON."),
     watch: bool = typer.Option(False, "--watch", "-w", help="Refresh every second until Ctrl-C."),
     connect: str | None = ConnectOption,
@@ -57,7 +57,7 @@ def status(
 
 
 def ros_env(
-    fleet: str | None = typer.Option(None, "--fleet", "-f", help="The fleet (needed when several run)."),
+    fleet: str | None = fleet_option("The fleet (needed when several run).", "-f"),
     agent: str | None = typer.Option(None, "--agent", "-a", help="zenoh transport: the agent on this computer."),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.cli.options import ConnectOption, ZenohConfigOption
+from fleet.cli.options import ConnectOption, ZenohConfigOption, client, fleet_option
 from fleet.errors import FleetError, Location
 
 
@@ -38,9 +38,7 @@ def register(app: typer.Typer) -> None:
     @app.command("snapshot")
     def snapshot(
         output: Path = typer.Option(Path("world.png"), "-o", "--output", help="PNG to write."),
-        fleet: str | None = typer.Option(
-            None, "--fleet", "-f", help="Fleet whose world to draw (needed when several fleets run one)."
-        ),
+        fleet: str | None = fleet_option("Fleet whose world to draw (needed when several fleets run one).", "-f"),
         connect: str | None = ConnectOption,
         zenoh_config: Path | None = ZenohConfigOption,
         status_file: Path | None = typer.Option(
@@ -97,12 +95,8 @@ def _remote_world(fleet: str | None, connect: str | None, zenoh_config: Path | N
     """One status query finds the agent running the world; that agent sends the whole state."""
     import time
 
-    from fleet.cli.options import client
     from fleet.plan import build_view, locate_world
-    from fleet.rules import key_name_problem
 
-    if fleet is not None and key_name_problem(fleet):
-        raise FleetError(f"--fleet: {key_name_problem(fleet)}")
     with client(connect, zenoh_config) as control:
         fleet_name, agent = locate_world(build_view(*control.status(fleet), time.time()), fleet)
         return control.world(fleet_name, agent).world

@@ -6,7 +6,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fleet.errors import ControlError
+from fleet.errors import BadRequest, ControlError
 from fleet.wire import protocol as p
 from fleet.wire.session import config_file, default_endpoint, open_client
 
@@ -97,6 +97,8 @@ class ControlClient:
         for agent, handler in pending:
             try:
                 results[agent] = _one_reply(handler, p.ApplyReply, f"agent {agent}")
+            except BadRequest as error:  # the spec was checked here: the agent's refusal is shown as its own
+                results[agent] = ControlError(f"agent {agent} refused the request: {error}")
             except ControlError as error:
                 results[agent] = error
         return results
@@ -152,7 +154,9 @@ def _one_reply(handler: Iterable[zenoh.Reply], model: type[p.MessageT], what: st
         raw = failure.payload.to_bytes()
         try:
             refusal = p.decode(raw, p.ErrorReply)
-            raise ControlError(f"{what} refused the request: {refusal.error}")
         except p.ProtocolError:
             raise ControlError(f"{what}: {raw.decode('utf-8', 'replace')}") from None
+        if refusal.code in p.INPUT_ERRORS:
+            raise BadRequest(refusal.error)  # "robot robot2 has no node 'nosuch'": about the input, not the agent
+        raise ControlError(f"{what} refused the request: {refusal.error}")
     raise ControlError(f"{what} is unreachable (not connected to the router, or it timed out)")

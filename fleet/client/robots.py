@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from fleet.client.control_client import ControlClient
-from fleet.errors import ControlError, FleetError
+from fleet.errors import BadRequest, ControlError, FleetError
 from fleet.plan.view import FleetView, build_view, known_fleets
 from fleet.wire import protocol as p
 
@@ -24,9 +24,13 @@ def fleet_status(client: ControlClient, fleet: str | None) -> tuple[list[p.Statu
 def locate_robot(client: ControlClient, robot: str, fleet: str | None) -> tuple[str, str]:
     """(fleet, agent) running `robot`, from one status query."""
     view = build_view(*client.status(fleet), time.time())
-    rows = [row for row in view.find_robot(robot, fleet) if row.state not in ("pending", "offline")]
+    found = view.find_robot(robot, fleet)
+    if not found:
+        raise BadRequest(f"no robot named {robot!r} is deployed" + (f" in fleet {fleet}" if fleet else ""))
+    rows = [row for row in found if row.state not in ("pending", "offline")]
     if not rows:
-        raise ControlError(f"no running robot named {robot!r}" + (f" in fleet {fleet}" if fleet else ""))
+        states = ", ".join(f"{row.state} in fleet {row.fleet}" for row in found)
+        raise ControlError(f"robot {robot!r} is not running ({states})")
     if len(rows) > 1:
         raise FleetError(f"robot {robot!r} exists in fleets {', '.join(r.fleet for r in rows)}: pick one with --fleet")
     return rows[0].fleet, rows[0].agent

@@ -16,8 +16,8 @@ from typing import Any
 
 from fleet.errors import Location, SpecError
 from fleet.rules import node_key_problem, ros_name_problem
-from fleet.spec.params import coerce_like, flatten, namespace_clash, value_problem
-from fleet.spec.yaml_source import DocPath, parse_parameter_value
+from fleet.spec.params import coerce_like, command_line_value, flatten, namespace_clash
+from fleet.spec.yaml_source import DocPath
 
 LAYERS = ("template", "defaults", "robot", "--set")
 
@@ -53,11 +53,9 @@ def parse_override(text: str) -> Override:
     if not equals or len(parts) < 3 or not all(parts):
         raise SpecError("expected ROBOT.NODE.PARAMETER=VALUE, e.g. robot1.controller.max_speed=0.8", where)
     try:
-        value = parse_parameter_value(raw)  # as rcl reads it in a parameter file: 1e-3 is a double
+        value = command_line_value(raw)
     except ValueError as error:
         raise SpecError(str(error), where) from None
-    if problem := value_problem(value):
-        raise SpecError(problem, where)
     # The names a spec's parameters must have (fleet.spec.load.check_parameters), and its values.
     if problem := node_key_problem(parts[1]):
         raise SpecError(f"node name {problem}", where)

@@ -70,8 +70,10 @@ def diff(
         if bundle.agent in moving and row.change in ("unchanged", "hot-update"):
             row.change, row.detail = "restart", _joined(moving[bundle.agent], row.detail)
         if running is not None and running.overrides and fate:
+            from fleet.spec.rcl_types import value_text  # not at the top: fleet.spec reads YAML, status does not
+
             drift = "; ".join(
-                f"{node} {name}={value!r}"
+                f"{node} {name}={value_text(value)}"
                 for node, values in sorted(running.overrides.items())
                 for name, value in sorted(values.items())
             )

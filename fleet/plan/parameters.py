@@ -19,12 +19,14 @@ class ParameterChange:
     new: Any = None  # None: the parameter is gone
 
     def __str__(self) -> str:
+        from fleet.spec.rcl_types import value_text  # not at the top: fleet.spec reads YAML, status does not
+
         where = f"{self.node.rsplit('/', 1)[-1]}.{self.name}"
         if self.old is None:
-            return f"{where} = {self.new!r} (new)"
+            return f"{where} = {value_text(self.new)} (new)"
         if self.new is None:
-            return f"{where} removed (was {self.old!r})"
-        return f"{where} {self.old!r} -> {self.new!r}"
+            return f"{where} removed (was {value_text(self.old)})"
+        return f"{where} {value_text(self.old)} -> {value_text(self.new)}"
 
 
 def bundle_parameters(files: dict[str, str]) -> ParameterValues:

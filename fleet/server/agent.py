@@ -734,7 +734,7 @@ class Agent:
             raise p.ProtocolError(
                 f"the world of fleet {fleet!r} has not reported its state yet "
                 f"(starting, or not running: see `fleet logs world`)",
-                "not_found",
+                "not_ready",  # not the asker's mistake: asked again later, it has one
             )
         try:
             document = p.world_document(data)

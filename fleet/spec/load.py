@@ -10,7 +10,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from fleet.errors import Location, SpecError
+from fleet.errors import Location, SpecError, validation_message
 from fleet.rules import (
     RESERVED_UNIT_NAMES,
     WORLD_TEMPLATE,
@@ -210,8 +210,7 @@ def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> Spec
         )
     if kind == "too_short" and loc == ("robots",):
         return SpecError("robots: a fleet needs at least one robot", source.locate(loc))
-    message = problem["msg"]
-    message = message.removeprefix("Value error, ")
+    message = validation_message(problem)
     if kind.endswith("_type") or kind in ("literal_error", "too_short"):
         got = problem.get("input")
         if kind != "too_short":

@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from fleet.spec.rcl_types import sequence_problem
-from fleet.spec.yaml_source import DocPath
+from fleet.spec.yaml_source import DocPath, parse_parameter_value
 
 SCALAR_TYPES = (bool, int, float, str)
 
@@ -36,6 +36,16 @@ def value_problem(value: Any) -> str | None:
             return f"mixed-type list: {problem} (write 1.0 for a double)" if value else problem
         return None
     return f"{type(value).__name__} is not a ROS parameter value"
+
+
+def command_line_value(text: str) -> Any:
+    """A parameter value given on the command line (`--set`, `fleet param set`), typed as rcl types
+    one in a parameter file (`1e-1` a double, `no` a bool; nothing at all is an empty string, as
+    `ros2 param set` makes it); raises ValueError saying why it is not one ROS can hold."""
+    value = parse_parameter_value(text)
+    if problem := value_problem(value):
+        raise ValueError(problem)
+    return value
 
 
 class ParameterNameClash(ValueError):

@@ -12,10 +12,13 @@ schemas.  For a plain (unquoted, untagged) scalar it tries, in order:
 - else a string (`~`, `null`, dates, `12:30` stay strings).
 Quoted scalars and `!!str` are strings.  A sequence must hold one type (no ints among doubles).
 tests/expand/data/rcl_scalar_types.json records what a real rcl made of each of these.
+
+value_text writes a value the other way round: as ROS YAML shows it, and rcl reads it back.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import sys
@@ -124,3 +127,27 @@ def _kind(value: RclValue) -> str:
     if isinstance(value, float):
         return "double"
     return "string"
+
+
+# A string shown as it is: words of ordinary characters between single spaces, the lone "-" (a
+# YAML list item) excepted.  Anything else YAML could read otherwise (`a: b`, `[x]`, `#`, edge
+# blanks), so it is quoted.
+_PLAIN_STRING = re.compile(r"(?!-(?: |$))[\w/.~+()=<>$^-]+(?: [\w/.~+()=<>$^-]+)*")
+
+
+def value_text(value: object) -> str:
+    """A parameter value written as ROS YAML writes it (`ros2 param dump`), the one way fleet shows
+    values to people: true/false, 0.5, [1.0, 2.0], a string as it is unless rcl would read it
+    as something else (`'true'`, `'0.5'`, `''`).  Written on the command line (`fleet param set`,
+    `--set`), the text gives back the same value."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float) and not math.isfinite(value):
+        return ".nan" if math.isnan(value) else ".inf" if value > 0 else "-.inf"
+    if isinstance(value, list):
+        return "[" + ", ".join(value_text(item) for item in value) + "]"
+    if isinstance(value, str) and not (_PLAIN_STRING.fullmatch(value) and rcl_scalar(value) == value):
+        if not value.isprintable():  # YAML's double quotes, as JSON's, escape newlines and the like
+            return json.dumps(value, ensure_ascii=False)
+        return "'" + value.replace("'", "''") + "'"
+    return str(value)

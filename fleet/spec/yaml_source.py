@@ -153,17 +153,6 @@ def safe_load(text: str, file: str | Path = "<yaml>") -> Any:
     return _Composer(text, SourceMap(str(file)), record=False).compose()
 
 
-def parse_scalar(text: str) -> Any:
-    """A command-line value parsed as one YAML scalar or flow collection (`0.8`, `true`, `[1, 2]`);
-    raises ValueError saying why it is not one."""
-    if not text.strip():
-        return ""
-    try:
-        return safe_load(text)
-    except SpecError as error:
-        raise ValueError(f"not a YAML value: {error.message}") from None
-
-
 def parse_parameter_value(text: str) -> Any:
     """A command-line parameter value read as rcl reads a value in a parameter file (`1e-3` a
     double, `[1, 2]` a list); raises ValueError saying why it is not one."""

@@ -36,6 +36,7 @@ from typing import Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from fleet.errors import validation_message
 from fleet.rules import ROS_TOKEN_PATTERN, ros_name_problem
 from fleet.rules import key_name_problem as key_name_problem
 from fleet.wire.limits import MAX_BUNDLES as MAX_BUNDLES
@@ -71,6 +72,12 @@ class ProtocolError(ValueError):
     def __init__(self, message: str, code: str = "invalid"):
         super().__init__(message)
         self.code = code
+
+
+# The codes of refusals of what a request names or holds (a robot or node the agent does not run,
+# a name it cannot take): the asker's input is wrong, not the fleet.  The client's error for them
+# is a BadRequest (exit 2); every other code is a failure of the request (exit 1).
+INPUT_ERRORS = frozenset({"invalid", "not_found"})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -759,7 +766,8 @@ def short_validation_error(error: ValidationError) -> str:
     problems = []
     for item in error.errors()[:5]:
         where = ".".join(str(part) for part in item["loc"])
-        problems.append(f"{where}: {item['msg']}" if where else item["msg"])
+        message = validation_message(item)
+        problems.append(f"{where}: {message}" if where else message)
     more = error.error_count() - len(problems)
     return "; ".join(problems) + (f" (and {more} more)" if more > 0 else "")
 

@@ -148,7 +148,7 @@ def test_world_description_limits(tmp_path, capsys):
 
 def test_parameter_value_of_param_set(capsys):
     line = one_error_line(capsys, ["param", "set", "r1", "controller", "max_speed", "[[[" * 30 + "]]]" * 30])
-    assert "cannot parse value" in line and "too deep" in line
+    assert "not a parameter value" in line and "too deep" in line
 
 
 def test_status_file_nested_too_deeply(tmp_path, capsys):

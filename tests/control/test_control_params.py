@@ -37,6 +37,14 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     negative = param(cluster, "set", "robot1", "controller", "max_speed", "-0.5")
     assert negative.returncode == 1, negative.stdout + negative.stderr
     assert "refused max_speed=-0.5" in negative.stderr and "out of range" in negative.stderr, negative.stderr
+    # Typed as --set types it (as rcl reads a parameter file): 1e-1 is a double, not a string.
+    exponent = param(cluster, "set", "robot1", "controller", "max_speed", "1e-1")
+    assert exponent.returncode == 0 and exponent.stdout.startswith("robot1/controller: max_speed = 0.1 "), exponent
+    # Nothing at all is an empty string, as with `ros2 param set`: the node refuses it for a double.
+    empty = param(cluster, "set", "robot1", "controller", "max_speed", "")
+    assert empty.returncode == 1 and "refused max_speed='': " in empty.stderr, empty.stderr
+    # Values are shown as ROS YAML writes them.
+    assert param(cluster, "get", "robot1", "controller", "loop").stdout == "true\n"
     accepted = param(cluster, "set", "robot1", "controller", "max_speed", "1")  # an int for a double: coerced
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr
     assert json.loads(param(cluster, "get", "robot1", "controller", "max_speed").stdout) == 1.0
@@ -51,8 +59,15 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     table = param(cluster, "list", "robot1", "controller")
     row = next(line.split() for line in table.stdout.splitlines() if line.split()[1:2] == ["max_speed"])
     assert table.returncode == 0 and row == ["controller", "max_speed", "1.0", "set", "live"], table.stdout
-    no_node = param(cluster, "list", "robot1", "no_such_node")
-    assert no_node.returncode == 1 and "no node 'no_such_node'" in no_node.stderr, no_node.stderr
+    # A node or robot the fleet does not have is the user's mistake: bad input, exit 2, one line.
+    for args in (["list", "robot1", "no_such_node"], ["get", "robot1", "no_such_node", "max_speed"]):
+        no_node = param(cluster, *args)
+        assert no_node.returncode == 2, no_node.stderr
+        assert no_node.stderr == "fleet: error: <command line>: robot robot1 has no node 'no_such_node'\n"
+    no_node = cluster.cli("logs", "robot1", "no_such_node", "--connect", cluster.endpoint)
+    assert no_node.returncode == 2 and "has no node 'no_such_node'" in no_node.stderr, no_node.stderr
+    no_robot = param(cluster, "get", "robot9", "controller", "max_speed")
+    assert no_robot.returncode == 2 and "no robot named 'robot9' is deployed" in no_robot.stderr, no_robot.stderr
 
     desired = json.loads((cluster.state_dir("hostA") / "desired" / "tiny.json").read_text())
     assert desired["overrides"]["robot1"]["/robot1/controller"]["max_speed"] == 1.0

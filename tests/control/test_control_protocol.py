@@ -230,3 +230,11 @@ def test_merged_params_file_keeps_every_value_as_rcl_reads_it():
     assert [(type(value), value) for value in got.values()] == [
         (type(value), value) for value in {**section, "max_speed": 0.9}.values()
     ]
+
+
+def test_a_validators_own_words_come_without_pydantics_prefix():
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError) as error:
+        p.ParamRequest(fleet="f", robot="r", node="n", name="x", op="set")
+    assert p.short_validation_error(error.value) == "a set needs a value"

@@ -51,11 +51,12 @@ def test_each_changed_added_and_removed_parameter_is_named():
         ParameterChange("/r/controller", "max_speed", 0.5, 0.8),
     ]
     assert [str(change) for change in changes[2:]] == [
-        "controller.gone removed (was True)",
+        "controller.gone removed (was true)",  # as ROS YAML writes it
         "controller.limits.accel 2.0 -> 3.0",
         "controller.max_speed 0.5 -> 0.8",
     ]
     assert parameter_changes({"r.params.yaml": OLD}, {"r.params.yaml": "# edited\n" + OLD}) == []
+    assert str(ParameterChange("/r/controller", "frame", None, "true")) == "controller.frame = 'true' (new)"
 
 
 def running(expansion, generation: int = 5, overrides: dict | None = None) -> list[p.StatusReply]:
@@ -112,12 +113,13 @@ def test_live_overrides_are_said_to_be_kept_or_dropped_as_the_agent_will():
     after = expand_fleet(load_spec(TINY), ["robot2.sleeper.period=2.0"])
     deployed = {b.name: b for request in requests_for(before, 5, set()) for b in request.bundles}
     overrides = {name: {f"/{name}/sleeper": {"period": 0.5}} for name in ("robot2", "robot3")}
+    overrides["robot3"]["/robot3/sleeper"]["verbose"] = True
     view = build_view(running(before, overrides=overrides), [], 0.0)
 
     rows = {row.robot: row for row in diff(after, view, deployed)}
 
     assert rows["robot2"].detail == "sleeper.period 1.0 -> 2.0; live overrides dropped: /robot2/sleeper period=0.5"
-    assert rows["robot3"].detail == "live overrides kept: /robot3/sleeper period=0.5"
+    assert rows["robot3"].detail == "live overrides kept: /robot3/sleeper period=0.5; /robot3/sleeper verbose=true"
 
 
 def test_a_world_update_says_what_the_world_will_do(tmp_path):

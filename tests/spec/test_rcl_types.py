@@ -54,3 +54,44 @@ def test_edges_of_the_c_conversions():
     assert rcl_scalar("0.0") == 0.0 and rcl_scalar("0e5") == 0.0  # a true zero is no underflow
     assert rcl_scalar("+.inf") == math.inf and math.isnan(float(rcl_scalar("NAN")))
     assert rcl_scalar("true", quoted=True) == "true"
+
+
+@pytest.mark.parametrize(
+    "value, text",
+    [
+        (True, "true"),
+        (False, "false"),
+        (0.1, "0.1"),
+        (1e-05, "1e-05"),
+        (2.0, "2.0"),
+        (-3, "-3"),
+        ("hello", "hello"),
+        ("base_link", "base_link"),
+        ("/robot1/odom", "/robot1/odom"),
+        ("two words", "two words"),
+        ("true", "'true'"),
+        ("no", "'no'"),
+        ("0.5", "'0.5'"),
+        ("1e-1", "'1e-1'"),
+        ("", "''"),
+        (" x", "' x'"),
+        ("a: b", "'a: b'"),
+        ("it's", "'it''s'"),
+        ("-", "'-'"),
+        ("line\nbreak", '"line\\nbreak"'),
+        ([1.0, 2.5], "[1.0, 2.5]"),
+        ([True, False], "[true, false]"),
+        (["front", "a, b", "yes"], "[front, 'a, b', 'yes']"),
+        (math.inf, ".inf"),
+    ],
+)
+def test_values_are_shown_as_ros_yaml_and_read_back_the_same(value, text):
+    from fleet.spec.params import command_line_value
+    from fleet.spec.rcl_types import value_text
+
+    assert value_text(value) == text
+    if not (isinstance(value, float) and math.isinf(value)):  # a value fleet refuses to be given
+        again = command_line_value(text)
+        assert again == value and type(again) is type(value), (text, again)
+        if isinstance(value, list):
+            assert [type(item) for item in again] == [type(item) for item in value]
