@@ -53,10 +53,13 @@ def one_line(text: str, limit: int = MAX_LINE) -> str:
     return f"{text[:head]} ... {text[len(text) - (limit - 5 - head) :]}"
 
 
+PYDANTIC_PREFIX = "Value error, "  # what pydantic puts before a validator's own words
+
+
 def validation_message(problem: Mapping[str, Any]) -> str:
-    """The message of one problem pydantic found (an item of ValidationError.errors()): a
-    validator's own words come without the "Value error, " pydantic puts before them."""
-    return str(problem["msg"]).removeprefix("Value error, ")
+    """The message of one problem pydantic found (an item of ValidationError.errors()), in the
+    validator's own words."""
+    return str(problem["msg"]).removeprefix(PYDANTIC_PREFIX)
 
 
 def error_line(problem: str) -> str:

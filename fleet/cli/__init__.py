@@ -22,7 +22,7 @@ from fleet.cli import (
     status_cmd,
     world_cmd,
 )
-from fleet.errors import COMMAND_LINE, EXIT_FAILURE, EXIT_USAGE, FleetError, Location
+from fleet.errors import COMMAND_LINE, EXIT_FAILURE, EXIT_USAGE, PYDANTIC_PREFIX, FleetError, Location
 
 app = typer.Typer(
     name="fleet",
@@ -95,8 +95,7 @@ def main(argv: list[str] | None = None) -> None:
         from fleet.cli.output import print_error
 
         command = error.ctx.command_path if getattr(error, "ctx", None) else "fleet"
-        # typer checks values with pydantic, whose messages begin "Value error, ".
-        message = error.format_message().replace("Value error, ", "")
+        message = error.format_message().replace(PYDANTIC_PREFIX, "")  # typer checks values with pydantic
         print_error(FleetError(f"{command}: {message}", Location(COMMAND_LINE)))
         sys.exit(EXIT_USAGE)
     except (typer.Abort, EOFError):
