@@ -10,7 +10,7 @@ A robot whose processes all run is `running` only when its data flows (judge_dat
 fleet with a world, the world must be advancing (it publishes /clock), must have had a cmd_vel
 from the robot lately (its controller runs on /clock, so that also says /clock reaches it), and
 the robot's odom must have a subscriber.  Otherwise it is `degraded` (or still `starting`, for
-a short while after its nodes started) with the reason in words.
+a short while after its nodes started, unless one of them has ended since) with the reason in words.
 """
 
 from __future__ import annotations
@@ -210,6 +210,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 hot_digest=robot.hot_digest,
                 overrides=robot.overrides,
                 error=robot.error,
+                reason=robot.reason,
                 nodes=[node.model_dump() for node in robot.nodes],
             )
 
@@ -373,8 +374,10 @@ def _heard_since_start(row: RobotRow, summary: p.WorldSummary) -> bool:
 
 
 def _young(row: RobotRow) -> bool:
+    """Its nodes started less than STARTUP_GRACE ago, each for the first time: a node restarted
+    after it ended is a fault its robot recovers from (or keeps having), not a start."""
     known = _uptimes(row)
-    return bool(known) and min(known) < STARTUP_GRACE
+    return bool(known) and min(known) < STARTUP_GRACE and not any(node.get("restarts") for node in row.nodes)
 
 
 def _uptimes(row: RobotRow) -> list[float]:

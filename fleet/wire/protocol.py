@@ -392,6 +392,7 @@ class RobotState(BaseModel):
     name: str
     kind: Literal["robot", "world"] = "robot"
     state: RobotStateName
+    reason: str = ""  # why it is not running, in words, as its agent sees it (a node that ended, ...)
     nodes: list[NodeState] = []
     running: int = 0
     total: int = 0

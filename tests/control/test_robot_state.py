@@ -1,0 +1,73 @@
+"""What an agent says of its robots, from their real (small, non-ROS) processes: a robot whose
+node keeps exiting is `degraded` and says why."""
+
+from __future__ import annotations
+
+import hashlib
+import re
+
+import pytest
+
+from fleet.server.units import Unit
+from fleet.testing.poll import poll
+from fleet.wire import protocol as p
+from tests.runtime.runtime_helpers import FakePrefix
+
+REFUSER = "#!/bin/sh\necho \"controller: error: parameter 'max_speed' = 9.0 is out of range 0.0 .. 5.0\"\nexit 2\n"
+SLEEPER = "#!/bin/sh\nexec sleep 100\n"
+
+
+@pytest.fixture
+def prefix(tmp_path, monkeypatch) -> FakePrefix:
+    prefix = FakePrefix(tmp_path / "prefix")
+    prefix.add("refuser", REFUSER)
+    prefix.add("sleeper", SLEEPER)
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix.root))  # for the agent's units
+    return prefix
+
+
+def bundle(name: str, nodes: str) -> p.BundleMessage:
+    text = "launch:\n" + nodes
+    return p.BundleMessage(
+        name=name,
+        kind="robot",
+        entry=f"{name}.launch.yaml",
+        files={f"{name}.launch.yaml": text},
+        options={"isolation": "robot"},  # the embedded runner, `ros2` on PATH or not
+        digest=hashlib.sha256(text.encode()).hexdigest(),
+    )
+
+
+def sleeper(name: str = "battery") -> str:
+    return f"- node: {{pkg: demo, exec: sleeper, name: {name}}}\n"
+
+
+def test_a_robot_whose_node_keeps_exiting_is_degraded_and_says_why(prefix, tmp_path):
+    nodes = "- node: {pkg: demo, exec: refuser, name: controller, respawn: 'true', respawn_delay: 0.1}\n" + sleeper()
+    unit = Unit("f", bundle("robot2", nodes), tmp_path / "robot2", prefix.env())
+    unit.start({})
+    seen: list[p.RobotState] = []
+
+    def look() -> p.RobotState:
+        seen.append(unit.state({}))
+        return seen[-1]
+
+    try:
+        state = poll(
+            look,
+            until=lambda state: state.restarts >= 2 and state.nodes[0].state == "backoff",
+            timeout=20,
+            interval=0.02,
+            what="the controller ended a third time",
+        )
+    finally:
+        unit.stop()
+    assert state.state == "degraded"
+    assert re.fullmatch(
+        r"controller exited with code 2 \(restarted \d+ times\): "
+        r"controller: error: parameter 'max_speed' = 9\.0 is out of range 0\.0 \.\. 5\.0",
+        state.reason,
+    ), state.reason
+    assert state.restarts == state.nodes[0].restarts  # the battery never ended
+    ended = [look for look in seen if any(node.state == "backoff" for node in look.nodes)]
+    assert ended and {look.state for look in ended} == {"degraded"}, [(look.state, look.reason) for look in ended]
