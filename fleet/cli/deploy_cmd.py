@@ -103,9 +103,7 @@ def deploy(
         print_json(outcome.to_json())
     else:
         _print_outcome(outcome, console())
-    if not outcome.ok and (
-        wait or outcome.timed_out or outcome.unreachable or outcome.refused or outcome.superseded_by
-    ):
+    if not outcome.ok:
         raise typer.Exit(1)
 
 
@@ -192,8 +190,10 @@ def _print_outcome(outcome, out) -> None:
         out.print(labelled("timed out", "red", "the router did not take the deploy within the timeout (see its log)"))
     elif outcome.timed_out:
         out.print(labelled("timed out", "red", f"waiting for every robot to run; not running: {_not_running(outcome)}"))
-    elif outcome.ok:
+    elif outcome.ok and outcome.waited:
         out.print(labelled("fleet up", "green"))
+    elif outcome.ok:
+        out.print(labelled("deploy taken", "green", "(not waiting for the robots: `fleet status` shows them)"))
     elif outcome.waited and not (outcome.unreachable or outcome.refused or outcome.superseded_by):
         out.print(labelled("not up", "red", f"waiting longer would not help; not running: {_not_running(outcome)}"))
 

@@ -91,14 +91,18 @@ class Outcome:
 
     @property
     def ok(self) -> bool:
-        return (
+        """The deploy was taken (every agent and the router hold it) and, when it waited, every
+        robot runs.  `fleet deploy` exits 1 unless it is."""
+        taken = (
             not self.unreachable
             and not self.refused
             and self.superseded_by is None
             and not self.timed_out
-            and self.view is not None
-            and self.view.all_running
+            and self.recorded
         )
+        if not self.waited:
+            return taken
+        return taken and self.view is not None and self.view.all_running
 
 
 def deploy(

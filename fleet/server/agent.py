@@ -669,8 +669,14 @@ class Agent:
         if fleet and state.request.shared:
             reply.shared_topics = self._shared_topics(fleet)
         seen = set()
+        desired = {bundle.name for bundle in state.request.bundles}
         for name, unit in units:
-            reply.robots.append(unit.state(overrides.get(name, {})))
+            robot = unit.state(overrides.get(name, {}))
+            if robot.state == "stopped" and name in desired:
+                # The reconcile thread stops it to start it again (a new description): what it
+                # will run is accepted and not started yet.
+                robot.state, robot.reason = "pending", "restarting: its previous nodes stop, then the new ones start"
+            reply.robots.append(robot)
             world = unit.world_summary()
             if world is not None:
                 reply.world = world

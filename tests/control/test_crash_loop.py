@@ -1,7 +1,7 @@
 """fleets/two_robots.yaml with robot2's controller refusing its max_speed at every start, over the
 control plane with real nodes and the world: the deploy stops waiting for robot2 and fails, and
 status says it is `degraded` and why (the node, its exit, its restarts, its own words), whichever
-isolation runs it."""
+isolation runs it.  A deploy that does not wait is ok once taken, and exits 0."""
 
 from __future__ import annotations
 
@@ -79,3 +79,33 @@ def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_dep
     assert robot2["state"] == "degraded", robot2
     table = cluster.cli("deploy", *refused, "--timeout", "150", timeout=200)
     assert table.returncode == 1 and "REASON" in table.stdout and REFUSAL in table.stdout, table.stdout
+
+
+def test_a_deploy_without_waiting_is_ok_once_taken_and_exits_0(one_agent):
+    cluster = one_agent
+    up = cluster.cli(
+        "deploy", str(spec(cluster, "process")), "--connect", cluster.endpoint, "--timeout", "150", timeout=200
+    )
+    assert up.returncode == 0, up.stdout + up.stderr
+    done = cluster.cli(
+        "deploy",
+        str(spec(cluster, "process")),
+        "--set",
+        "robot2.controller.max_speed=0.45",
+        "--no-wait",
+        "--json",
+        "--connect",
+        cluster.endpoint,
+    )
+    outcome = json.loads(done.stdout)
+    assert done.returncode == 0 and outcome["ok"] is True and outcome["recorded"], done.stdout + done.stderr
+    assert outcome["agents"]["hostA"]["changes"]["restart"] == ["robot2"]
+    # Being restarted, robot2 is not `stopped`: it runs its old nodes still, or waits for its new ones.
+    robot2 = rows(outcome["status"])["robot2"]
+    assert robot2["state"] != "stopped", robot2
+    poll(
+        lambda: rows(json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout))["robot2"],
+        until=lambda row: row["state"] == "running",
+        timeout=60,
+        what="robot2 running its new description",
+    )

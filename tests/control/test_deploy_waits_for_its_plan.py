@@ -10,7 +10,8 @@ under two suites at once).  Here a client whose registry takes the plan one stat
 router's lag; the expansion and the deploy are fleet's own code.
 
 What a deploy waits for, with the same stand-in: it stops waiting for a robot whose node keeps
-exiting, and counts a respawned node as up only once it has run steadily.
+exiting, counts a respawned node as up only once it has run steadily, and without waiting for the
+robots it is ok once the router and the agents took it.
 """
 
 from __future__ import annotations
@@ -188,6 +189,15 @@ def test_a_deploy_stops_waiting_for_a_robot_whose_node_keeps_exiting(tmp_path):
     ):
         outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), timeout=1.0)  # type: ignore[arg-type]
         assert outcome.timed_out and not outcome.ok
+
+
+def test_a_deploy_that_only_waits_for_the_router_is_ok_once_taken(tmp_path):
+    router = CrashingRouter(["robot1", "robot2"], generation=1, restarts=0, starting=True)
+
+    outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), wait=False, timeout=5.0)  # type: ignore[arg-type]
+
+    assert outcome.recorded and not outcome.view.all_running  # type: ignore[union-attr]
+    assert outcome.ok and outcome.to_json()["ok"] is True
 
 
 class RespawningRouter(LaggingRouter):

@@ -1,5 +1,5 @@
 """What an agent says of its robots, from their real (small, non-ROS) processes: a robot whose
-node keeps exiting is `degraded` and says why."""
+node keeps exiting is `degraded` and says why, and one being restarted is `pending`."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import re
 
 import pytest
 
+from fleet.server.agent import Agent
 from fleet.server.units import Unit
 from fleet.testing.poll import poll
 from fleet.wire import protocol as p
@@ -71,3 +72,34 @@ def test_a_robot_whose_node_keeps_exiting_is_degraded_and_says_why(prefix, tmp_p
     assert state.restarts == state.nodes[0].restarts  # the battery never ended
     ended = [look for look in seen if any(node.state == "backoff" for node in look.nodes)]
     assert ended and {look.state for look in ended} == {"degraded"}, [(look.state, look.reason) for look in ended]
+
+
+@pytest.fixture
+def agents(prefix, tmp_path):
+    """make() -> an agent on one state directory (no Zenoh session: applied and reconciled by
+    the test itself); their units are stopped at the end."""
+    made: list[Agent] = []
+
+    def make() -> Agent:
+        agent = Agent("rack_a", ["tcp/127.0.0.1:0"], tmp_path / "state", address="127.0.0.1")
+        agent.store.claim()
+        made.append(agent)
+        return agent
+
+    yield make
+    for agent in made:
+        agent._stop_all_units()
+
+
+def request(generation: int, *bundles: p.BundleMessage) -> p.ApplyRequest:
+    return p.ApplyRequest(fleet="f", agent="rack_a", generation=generation, domain_id=0, bundles=list(bundles))
+
+
+def test_a_robot_being_restarted_is_pending_not_stopped(agents):
+    agent = agents()
+    assert agent.apply(request(1, bundle("robot1", sleeper()))).accepted
+    agent._reconcile("f")
+    assert agent.apply(request(2, bundle("robot1", sleeper("safety")))).accepted
+    agent._units[("f", "robot1")].stop()  # the reconcile's first step: stop it to start it again
+    (robot,) = agent.status("f").robots
+    assert robot.state == "pending" and robot.reason.startswith("restarting"), robot
