@@ -43,7 +43,8 @@ class RobotRow:
     running: int = 0
     total: int = 0
     restarts: int = 0
-    generation: int = 0
+    generation: int = 0  # of the desired state its agent last reconciled it to
+    deployed_generation: int = 0  # of the deploy that brought what it runs (the DEPLOYED column)
     digest: str = ""
     hot_digest: str = ""
     pose: dict[str, float] | None = None  # in the world frame, from the world's report
@@ -206,6 +207,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 total=robot.total,
                 restarts=robot.restarts,
                 generation=robot.generation,
+                # An agent that does not tell (an earlier version) has it run its generation's.
+                deployed_generation=robot.deployed_generation or robot.generation,
                 digest=robot.digest,
                 hot_digest=robot.hot_digest,
                 overrides=robot.overrides,

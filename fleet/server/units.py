@@ -48,7 +48,8 @@ class Unit:
         self.bundle = bundle
         self.directory = directory
         self.env = env
-        self.generation = 0
+        self.generation = 0  # of the desired state it was last reconciled to
+        self.deployed_generation = 0  # of the deploy that brought the description it runs
         self.session: LaunchSession | None = None
         self.error = ""
         self.seen_running = False
@@ -157,6 +158,7 @@ class Unit:
             # Per process: the nodes sharing one (composite, a host's robot) restart together.
             restarts=sum({node.process: node.restarts for node in statuses}.values()),
             generation=self.generation,
+            deployed_generation=self.deployed_generation,
             digest=self.bundle.digest,
             hot_digest=self.bundle.hot_digest,
             overrides=overrides,

@@ -1,5 +1,6 @@
 """What an agent says of its robots, from their real (small, non-ROS) processes: a robot whose
-node keeps exiting is `degraded` and says why, and one being restarted is `pending`."""
+node keeps exiting is `degraded` and says why, one being restarted is `pending`, and each one's
+deployed generation is that of the deploy that brought what it runs."""
 
 from __future__ import annotations
 
@@ -95,6 +96,28 @@ def request(generation: int, *bundles: p.BundleMessage) -> p.ApplyRequest:
     return p.ApplyRequest(fleet="f", agent="rack_a", generation=generation, domain_id=0, bundles=list(bundles))
 
 
+def deployed(agent: Agent) -> dict[str, tuple[int, int]]:
+    """robot -> (generation, deployed_generation) as the agent's status says."""
+    return {robot.name: (robot.generation, robot.deployed_generation) for robot in agent.status("f").robots}
+
+
+def test_a_robot_s_deployed_generation_is_the_deploy_that_brought_what_it_runs(agents):
+    agent = agents()
+    robot1, robot2 = bundle("robot1", sleeper()), bundle("robot2", sleeper())
+    assert agent.apply(request(1, robot1, robot2)).accepted
+    agent._reconcile("f")
+    assert deployed(agent) == {"robot1": (1, 1), "robot2": (1, 1)}
+    assert agent.apply(request(2, robot1, bundle("robot2", sleeper("safety")))).accepted  # robot2 alone changes
+    agent._reconcile("f")
+    assert deployed(agent) == {"robot1": (2, 1), "robot2": (2, 2)}
+    agent._stop_all_units()
+
+    again = agents()  # the agent started again: its robots come back from its state directory
+    again._restore()
+    again._reconcile("f")
+    assert deployed(again) == {"robot1": (2, 1), "robot2": (2, 2)}
+
+
 def test_a_robot_being_restarted_is_pending_not_stopped(agents):
     agent = agents()
     assert agent.apply(request(1, bundle("robot1", sleeper()))).accepted
@@ -103,3 +126,4 @@ def test_a_robot_being_restarted_is_pending_not_stopped(agents):
     agent._units[("f", "robot1")].stop()  # the reconcile's first step: stop it to start it again
     (robot,) = agent.status("f").robots
     assert robot.state == "pending" and robot.reason.startswith("restarting"), robot
+    assert robot.deployed_generation == 2  # what it is brought to
