@@ -38,6 +38,11 @@ WORLD_TEMPLATE = "world"
 LOCAL_AGENT = "local"
 
 
+# A node process that ran this long is healthy again: the runner's respawn backoff starts over,
+# and a deploy counts a respawned node as up only from then on.
+STABLE_AFTER = 10.0
+
+
 def daemon_agents(extra: list[str] | tuple[str, ...] = ()) -> list[str]:
     """The agents a local daemon runs: `local`, then those `fleet up --agent` named, once each."""
     return list(dict.fromkeys([LOCAL_AGENT, *extra]))

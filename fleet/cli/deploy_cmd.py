@@ -108,9 +108,7 @@ def deploy(
         _print_outcome(outcome, console())
     if outcome.problems:
         raise typer.Exit(EXIT_USAGE)  # the spec's templates name what is not there: bad input
-    if not outcome.ok and (
-        wait or outcome.timed_out or outcome.unreachable or outcome.refused or outcome.superseded_by
-    ):
+    if not outcome.ok:
         raise typer.Exit(1)
 
 
@@ -205,11 +203,18 @@ def _print_outcome(outcome, out) -> None:
     if outcome.timed_out and not outcome.recorded:
         out.print(labelled("timed out", "red", "the router did not take the deploy within the timeout (see its log)"))
     elif outcome.timed_out:
-        stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
-        stuck_text = "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
-        out.print(labelled("timed out", "red", f"waiting for every robot to run; not running: {stuck_text}"))
-    elif outcome.ok:
+        out.print(labelled("timed out", "red", f"waiting for every robot to run; not running: {_not_running(outcome)}"))
+    elif outcome.ok and outcome.waited:
         out.print(labelled("fleet up", "green"))
+    elif outcome.ok:
+        out.print(labelled("deploy taken", "green", "(not waiting for the robots: `fleet status` shows them)"))
+    elif outcome.waited and not (outcome.unreachable or outcome.refused or outcome.superseded_by):
+        out.print(labelled("not up", "red", f"waiting longer would not help; not running: {_not_running(outcome)}"))
+
+
+def _not_running(outcome) -> str:
+    stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
+    return "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
 
 
 def diff(

@@ -19,6 +19,13 @@ def print_json(data: Any) -> None:
     sys.stdout.write(json_text(data) + "\n")
 
 
+def print_json_line(data: Any) -> None:
+    """One JSON document on one line, flushed at once: a stream of them (status --watch --json)
+    is read line by line by the program at its other end."""
+    sys.stdout.write(json.dumps(data, default=str) + "\n")
+    sys.stdout.flush()
+
+
 def json_text(data: Any, depth: int = 2, indent: str = "") -> str:
     """JSON indented down to `depth` levels, each deeper value on one line: a document of 10,000
     robots reads as one robot per line, and is written by json's C encoder (indenting every level

@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from fleet.cli.options import ConnectOption, ZenohConfigOption, client, fleet_option
+
+if TYPE_CHECKING:
+    from fleet.client import ControlClient
+    from fleet.plan import FleetView
 
 
 def register(app: typer.Typer) -> None:
@@ -18,7 +24,9 @@ def register(app: typer.Typer) -> None:
 def status(
     fleet: str | None = fleet_option("Only this fleet.", "-f"),
     json: bool = typer.Option(False, "--json", help="Print JSON."),
-    watch: bool = typer.Option(False, "--watch", "-w", help="Refresh every second until Ctrl-C."),
+    watch: bool = typer.Option(
+        False, "--watch", "-w", help="Refresh every second until Ctrl-C (with --json: one document per line each time)."
+    ),
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
 ) -> None:
@@ -27,26 +35,22 @@ def status(
     Agents (online/offline), robots (state, nodes, restarts, pose, battery)
     and worlds (sim time, real-time factor, contacts).  Without --watch,
     exits 1 unless every robot runs."""
-    from fleet.cli.output import console, print_json
+    from fleet.cli.output import console, print_json, print_json_line
     from fleet.cli.status_view import print_view, view_tables
     from fleet.client import fleet_status
     from fleet.plan import build_view
 
     with client(connect, zenoh_config) as control:
         view = build_view(*fleet_status(control, fleet), time.time())  # a fleet unknown here ends it now
-        if watch and not json:
+        if watch and json:  # a stream, as `kubectl get -w -o json`: one document per line per refresh
+            _refresh(control, fleet, view, lambda view: print_json_line(view.to_json()))
+            return
+        if watch:
             from rich.console import Group
             from rich.live import Live
 
-            out = console()
-            with Live(console=out, auto_refresh=False) as live:
-                try:
-                    while True:  # on while the fleet goes down, or the router restarts: it shows that
-                        live.update(Group(*view_tables(view)), refresh=True)
-                        time.sleep(1.0)
-                        view = build_view(*control.status(fleet), time.time())
-                except KeyboardInterrupt:
-                    pass
+            with Live(console=console(), auto_refresh=False) as live:
+                _refresh(control, fleet, view, lambda view: live.update(Group(*view_tables(view)), refresh=True))
             return
     if json:
         print_json(view.to_json())
@@ -54,6 +58,20 @@ def status(
         print_view(view, console())
     if not view.all_running:
         raise typer.Exit(1)
+
+
+def _refresh(control: ControlClient, fleet: str | None, view: FleetView, show: Callable[[FleetView], None]) -> None:
+    """Show the view, then a new one every second until Ctrl-C; on while the fleet goes down, or
+    the router restarts: it shows that."""
+    from fleet.plan import build_view
+
+    try:
+        while True:
+            show(view)
+            time.sleep(1.0)
+            view = build_view(*control.status(fleet), time.time())
+    except KeyboardInterrupt:
+        pass
 
 
 def ros_env(

@@ -53,7 +53,7 @@ def view_tables(view, agents: bool = True):
             state,
             f"{row.running}/{row.total}",
             str(row.restarts),
-            _generation_time(row.generation),
+            _generation_time(row.deployed_generation),
             pose,
             battery,
         ]

@@ -24,6 +24,7 @@ from fleet.plan import (
     requests_for,
     with_planned_agents,
 )
+from fleet.rules import STABLE_AFTER
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
@@ -50,6 +51,7 @@ class Outcome:
     already_applied: bool = False
     # agent -> robot -> why its unit could not start there: nothing was sent to any agent.
     problems: dict[str, dict[str, str]] = field(default_factory=dict)
+    waited: bool = True  # for the robots to run (deploy --wait); else only until the router held it
 
     @property
     def unreachable(self) -> dict[str, str]:
@@ -92,15 +94,19 @@ class Outcome:
 
     @property
     def ok(self) -> bool:
-        return (
+        """The deploy was taken (every agent and the router hold it) and, when it waited, every
+        robot runs.  `fleet deploy` exits 1 unless it is."""
+        taken = (
             not self.problems
             and not self.unreachable
             and not self.refused
             and self.superseded_by is None
             and not self.timed_out
-            and self.view is not None
-            and self.view.all_running
+            and self.recorded
         )
+        if not self.waited:
+            return taken
+        return taken and self.view is not None and self.view.all_running
 
 
 def deploy(
@@ -112,7 +118,7 @@ def deploy(
 ) -> Outcome:
     statuses, registries = client.status(expansion.fleet)
     before = build_view(statuses, registries, time.time())
-    outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before))
+    outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before), waited=wait)
     requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
     # What the router keeps: each desired state, for agents that are away, and the plan, for status.
     desired = with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
@@ -201,23 +207,40 @@ def _plan_taken(registries: list[p.RegistryReply], fleet: str, generation: int) 
 
 
 def _settled(view: FleetView, wanted: set[str], generation: int) -> bool:
-    """Every robot we could send runs at (at least) our generation, and removed ones are gone."""
+    """Every robot we could send runs steadily at (at least) our generation, and removed ones are gone."""
     rows = {row.name: row for row in view.robots}
     for name in wanted:
         row = rows.get(name)
-        if row is None or row.state != "running" or row.generation < generation:
+        if row is None or row.state != "running" or row.generation < generation or not _steady(row):
             return False
     # Rows only the registry knows (pending, offline) are not running anywhere: they don't count.
     return all(row.name in wanted or row.state in ("pending", "offline") for row in view.robots)
 
 
+CRASH_LOOP = 2  # restarts of a node, now waiting to be restarted again, after which waiting is no use
+
+
+def _steady(row: RobotRow) -> bool:
+    """No node of it was restarted less than STABLE_AFTER ago (the runner's own `healthy again`):
+    a node that keeps exiting runs for a moment between its exits, and a fleet without a world
+    judges robots by their processes, so that moment alone would pass for `fleet up`."""
+    return all(not node.get("restarts") or (node.get("uptime") or 0.0) >= STABLE_AFTER for node in row.nodes)
+
+
 def _hopeless(view: FleetView, wanted: set[str], generation: int) -> bool:
-    """Every robot is running or failed for good (its launch file could not start): stop waiting."""
+    """Every robot is running, or will not run by waiting longer: it failed (its launch file could
+    not start, a node ended and is not restarted) or a node of it keeps exiting.  Stop waiting."""
     rows = {row.name: row for row in view.robots}
-    failed = [n for n in wanted if n in rows and rows[n].error and rows[n].generation >= generation]
-    others = [n for n in wanted if n not in failed]
-    return bool(failed) and all(
+    stuck = [n for n in wanted if n in rows and rows[n].generation >= generation and _stuck(rows[n])]
+    others = [n for n in wanted if n not in stuck]
+    return bool(stuck) and all(
         n in rows and rows[n].state == "running" and rows[n].generation >= generation for n in others
+    )
+
+
+def _stuck(row: RobotRow) -> bool:
+    return row.state == "failed" or any(
+        node.get("state") == "backoff" and node.get("restarts", 0) >= CRASH_LOOP for node in row.nodes
     )
 
 

@@ -7,6 +7,8 @@ carries JSON lines, one request and one reply each (`{"ok": true, ...}` or `{"ok
 
     {"op": "add", "robot": R, "respawn": true, "respawn_delay": 1.0,
      "nodes": [{"executable": "controller", "ros_args": ["--ros-args", "-r", "__ns:=/r1", ...]}]}
+                                -> nodes it cannot create: {"ok": false, "error", "state"}
+                                   (backoff: tried again; failed: respawn is off)
     {"op": "remove", "robot": R}
     {"op": "status"}            -> {"ok": true, "robots": {R: {"state", "restarts", "uptime", "error"}}}
     {"op": "fault", "robot": R, "node": NAME}   fault injection (tests, drills): that node's next
@@ -156,8 +158,8 @@ class Host:
             )
             self.robots[name] = robot
             self.create(robot)
-            if robot.state != "running":
-                return {"ok": False, "error": robot.error}
+            if robot.state != "running":  # backoff (tried again) or failed (respawn off)
+                return {"ok": False, "error": robot.error, "state": robot.state}
             return {"ok": True}
         held = self.robots.get(name)
         if held is None:
@@ -217,7 +219,8 @@ class Host:
         self.after_failure(robot)
 
     def after_failure(self, robot: HostedRobot) -> None:
-        from fleet.runtime.supervisor import STABLE_AFTER, backoff_delay
+        from fleet.rules import STABLE_AFTER
+        from fleet.runtime.supervisor import backoff_delay
 
         if not robot.respawn:
             robot.state = "failed"

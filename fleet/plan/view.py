@@ -10,7 +10,7 @@ A robot whose processes all run is `running` only when its data flows (judge_dat
 fleet with a world, the world must be advancing (it publishes /clock), must have had a cmd_vel
 from the robot lately (its controller runs on /clock, so that also says /clock reaches it), and
 the robot's odom must have a subscriber.  Otherwise it is `degraded` (or still `starting`, for
-a short while after its nodes started) with the reason in words.
+a short while after its nodes started, unless one of them has ended since) with the reason in words.
 """
 
 from __future__ import annotations
@@ -43,7 +43,8 @@ class RobotRow:
     running: int = 0
     total: int = 0
     restarts: int = 0
-    generation: int = 0
+    generation: int = 0  # of the desired state its agent last reconciled it to
+    deployed_generation: int = 0  # of the deploy that brought what it runs (the DEPLOYED column)
     digest: str = ""
     hot_digest: str = ""
     pose: dict[str, float] | None = None  # in the world frame, from the world's report
@@ -206,10 +207,13 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 total=robot.total,
                 restarts=robot.restarts,
                 generation=robot.generation,
+                # An agent that does not tell (an earlier version) has it run its generation's.
+                deployed_generation=robot.deployed_generation or robot.generation,
                 digest=robot.digest,
                 hot_digest=robot.hot_digest,
                 overrides=robot.overrides,
                 error=robot.error,
+                reason=robot.reason,
                 nodes=[node.model_dump() for node in robot.nodes],
             )
 
@@ -373,8 +377,10 @@ def _heard_since_start(row: RobotRow, summary: p.WorldSummary) -> bool:
 
 
 def _young(row: RobotRow) -> bool:
+    """Its nodes started less than STARTUP_GRACE ago, each for the first time: a node restarted
+    after it ended is a fault its robot recovers from (or keeps having), not a start."""
     known = _uptimes(row)
-    return bool(known) and min(known) < STARTUP_GRACE
+    return bool(known) and min(known) < STARTUP_GRACE and not any(node.get("restarts") for node in row.nodes)
 
 
 def _uptimes(row: RobotRow) -> list[float]:

@@ -34,7 +34,7 @@ from fleet.runtime import ament
 from fleet.runtime.launch_file import NodeLaunch
 from fleet.runtime.node_log import ProcessOutput
 from fleet.runtime.processes import group_exists, signal_group, spawn, stop_all
-from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, backoff_delay
+from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, backoff_delay, ended_problem
 
 HOST_MODULE = "fleet.nodes.host"
 LOG_FORMAT = "[{severity}] [{time}] [{name}]: {message}"  # the rcutils default, fixed for the split
@@ -43,6 +43,9 @@ CONNECT_TIMEOUT = 60.0  # s: rclpy start-up of a host on a loaded machine
 REPLY_TIMEOUT = 60.0  # s: creating a robot's nodes on a loaded machine
 POLL = 0.5  # s between status requests (and liveness checks) of a host
 STOP_TIMEOUTS = (5.0, 5.0)  # SIGINT, then SIGTERM after the first, SIGKILL after both
+
+
+HOST_STATES = {"running": RUNNING, "backoff": BACKOFF, "failed": FAILED}  # a host's word for a robot -> ours
 
 
 def logger_name(fqn: str) -> str:
@@ -230,6 +233,7 @@ class HostProcess:
                 robot.reported_restarts = 0
                 robot.added = False
                 robot.state = BACKOFF
+                robot.error = f"host process {self.name} exited with code {code}"
                 robot.note(f"{self.name} exited with code {code}; restarting it in {delay:.1f} s")
             if self._stopping.wait(delay):
                 return
@@ -299,7 +303,9 @@ class HostProcess:
                     robot.state, robot.error = RUNNING, ""
                 else:
                     robot.error = str(reply.get("error", "refused"))
-                    robot.state = FAILED
+                    # The host says whether it tries again (backoff) or gave up (failed: respawn
+                    # is off); a robot shown `failed` while it is tried again ends a deploy's wait.
+                    robot.state = HOST_STATES.get(reply.get("state", ""), FAILED)
                     robot.note(f"cannot create the nodes of robot {robot.name}: {robot.error}")
 
     def _poll(self) -> None:
@@ -314,7 +320,7 @@ class HostProcess:
                 if status is None or not robot.added:
                     continue
                 robot.reported_restarts = int(status.get("restarts", 0))
-                robot.state = {"running": RUNNING, "backoff": BACKOFF, "failed": FAILED}.get(status["state"], STARTING)
+                robot.state = HOST_STATES.get(status["state"], STARTING)
                 robot.uptime = float(status.get("uptime", 0.0))
                 robot.error = str(status.get("error", ""))
 
@@ -415,17 +421,21 @@ class HostPool:
             return []
         alive = popen is not None and popen.poll() is None
         state = hosted.state if alive or hosted.state == FAILED else BACKOFF if hosted.added else STARTING
+        restarts = hosted.restarts_before + hosted.reported_restarts
+        # The host destroys and creates a robot's nodes together, and says why once for them all.
+        problem = ended_problem("its hosted nodes", None, restarts, hosted.error) if state in (BACKOFF, FAILED) else ""
         return [
             NodeStatus(
                 name=node.name,
                 fqn=node.fqn,
                 pid=popen.pid if alive and state == RUNNING else None,
                 state=state,
-                restarts=hosted.restarts_before + hosted.reported_restarts,
+                restarts=restarts,
                 exit_code=None,
                 uptime=hosted.uptime if state == RUNNING else 0.0,
                 cmd=list(host.cmd),
                 process=host.name,
+                problem=problem,
             )
             for node in hosted.nodes
         ]

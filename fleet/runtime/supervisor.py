@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
+from fleet.rules import STABLE_AFTER
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
@@ -33,7 +34,6 @@ from fleet.runtime.node_log import ProcessOutput
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
 BACKENDS = ("auto", "embedded", "ros2")
-STABLE_AFTER = 10.0  # a process that ran this long is healthy again: backoff starts over
 MIN_BACKOFF = 0.25  # base of the exponential backoff when respawn_delay is 0
 MAX_BACKOFF = 30.0
 POLL_INTERVAL = 0.05  # while stopping: a process group has no fd to wait on, so it is polled
@@ -59,6 +59,8 @@ class NodeStatus:
     uptime: float  # seconds since the current process started; 0 when not running
     cmd: list[str]
     process: str  # `controller-1`, `composite-1`, `ros2-launch-1`: log name and screen prefix
+    # While its process does not run after having run: how it ended, in words (see ended_problem).
+    problem: str = ""
 
 
 def default_log_dir() -> Path:
@@ -71,6 +73,30 @@ def default_log_dir() -> Path:
         base = Path.home() / ".ros" / "log"
     stamp = datetime.datetime.now().strftime("%Y-%m-%d-%H-%M-%S-%f")
     return base / f"fleet-run-{stamp}-{os.getpid()}"
+
+
+LAST_WORDS = 300  # characters of a process's last line that a problem quotes
+
+
+def ended_problem(who: str, exit_code: int | None, restarts: int, last_line: str = "") -> str:
+    """Why `who` does not run, in words: how its process ended, how often it was restarted, and
+    the last line it printed, which is where a node says why it gives up (a refused parameter):
+    `controller exited with code 2 (restarted 4 times): controller: error: ...`."""
+    if exit_code is None:
+        text = f"{who} stopped"
+    elif exit_code < 0:
+        try:
+            text = f"{who} was killed by {signal.Signals(-exit_code).name}"
+        except ValueError:
+            text = f"{who} was killed by signal {-exit_code}"
+    else:
+        text = f"{who} exited with code {exit_code}"
+    if restarts:
+        text += f" (restarted {restarts} time{'s' if restarts != 1 else ''})"
+    last_line = " ".join(last_line.split())
+    if last_line:
+        text += f": {last_line[:LAST_WORDS]}"
+    return text
 
 
 def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
@@ -183,6 +209,7 @@ class LaunchSession:
         with self._lock:
             for process in self._processes:
                 uptime = now - process.started_at if process.state == RUNNING else 0.0
+                problem = self._problem(process)
                 nodes: list[NodeLaunch | None] = list(process.spec.nodes) or [None]
                 for node in nodes:
                     result.append(
@@ -196,9 +223,20 @@ class LaunchSession:
                             uptime=round(uptime, 3),
                             cmd=list(process.spec.cmd),
                             process=process.spec.name,
+                            problem=problem,
                         )
                     )
         return result
+
+    @staticmethod
+    def _problem(process: _Supervised) -> str:
+        """How the process ended, while it has ended and not been started again ("" otherwise)."""
+        if process.state not in (BACKOFF, EXITED, FAILED):
+            return ""
+        nodes = process.spec.nodes
+        who = nodes[0].name if len(nodes) == 1 and nodes[0].name else process.spec.name
+        last = process.output.tail(1)
+        return ended_problem(who, process.exit_code, process.restarts, last[0] if last else "")
 
     def hosted_nodes(self) -> list[NodeLaunch]:
         """The nodes this session leaves to an agent's host processes (isolation: agent)."""
@@ -452,9 +490,10 @@ class LaunchSession:
                 return False
             # The node is gone; whatever it left in its group goes too.
             signal_group(popen.pid, signal.SIGKILL)
+            # Its last lines are read before it is declared ended: they say why (status quotes them).
+            if process.pump is not None:
+                process.pump.join(timeout=0.5)
             if not process.spec.respawn:
-                if process.pump is not None:  # its last lines are read before it is declared done
-                    process.pump.join(timeout=0.5)
                 process.state = EXITED if process.exit_code == 0 else FAILED
                 return False
             ran_for = now - process.started_at

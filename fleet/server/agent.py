@@ -360,6 +360,12 @@ class Agent:
                     if robot in changes.unchanged or robot in changes.hot_update
                 }
             state = FleetState(request=request, overrides=overrides)
+            # What it runs came with an earlier deploy only when this one leaves it unchanged.
+            kept = held.deployed if held else {}
+            state.deployed = {
+                name: kept.get(name, held.generation) if held and name in changes.unchanged else request.generation
+                for name in desired
+            }
             if held and not request.discovery_server and held.request.discovery_host == request.discovery_host:
                 state.discovery_host_address = held.discovery_host_address  # still that host's
             self.store.save(state)  # persisted before we acknowledge
@@ -415,6 +421,7 @@ class Agent:
             units = {name: unit for (f, name), unit in self._units.items() if f == fleet}
             overrides = {robot: dict(values) for robot, values in state.overrides.items()}
             generation = state.generation
+            deployed = dict(state.deployed)
             env = self._unit_env(state.request.domain_id, self._discovery_server(state))
         # A unit whose environment is not this one (the fleet's discovery server moved) restarts.
         running = {name: unit for name, unit in units.items() if name in desired and unit.session is not None}
@@ -441,6 +448,7 @@ class Agent:
             hosts = self._host_pool(fleet, env, desired[name])
             unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), env, hosts)
             unit.generation = generation
+            unit.deployed_generation = deployed.get(name, generation)
             with self._lock:
                 self._units[(fleet, name)] = unit
             unit.start(overrides.get(name, {}))
@@ -448,6 +456,7 @@ class Agent:
                 log.error("robot %s of fleet %s failed to start: %s", name, fleet, unit.error)
         for name in changes.hot_update:
             units[name].hot_update(desired[name], overrides.get(name, {}))
+            units[name].deployed_generation = deployed.get(name, generation)
         for name in changes.hot_update + changes.unchanged:
             units[name].generation = generation
         with self._lock:
@@ -697,8 +706,15 @@ class Agent:
         if fleet and state.request.shared:
             reply.shared_topics = self._shared_topics(fleet)
         seen = set()
+        desired = {bundle.name for bundle in state.request.bundles}
         for name, unit in units:
-            reply.robots.append(unit.state(overrides.get(name, {})))
+            robot = unit.state(overrides.get(name, {}))
+            if robot.state == "stopped" and name in desired:
+                # The reconcile thread stops it to start it again (a new description): what it
+                # will run is accepted and not started yet.
+                robot.state, robot.reason = "pending", "restarting: its previous nodes stop, then the new ones start"
+                robot.deployed_generation = state.deployed.get(name, 0)
+            reply.robots.append(robot)
             world = unit.world_summary()
             if world is not None:
                 reply.world = world
@@ -710,6 +726,7 @@ class Agent:
                         name=bundle.name,
                         kind=bundle.kind,
                         state="pending",
+                        deployed_generation=state.deployed.get(bundle.name, 0),
                         digest=bundle.digest,
                         hot_digest=bundle.hot_digest,
                     )

@@ -28,6 +28,9 @@ class FleetState(BaseModel):
     # Where the fleet's discovery host said it is, when the deploy named the host only (it was
     # offline then): kept so that robots started again get the server at once.
     discovery_host_address: str = ""
+    # robot -> the generation of the deploy that brought its description (the DEPLOYED column):
+    # a deploy leaving a robot unchanged keeps its earlier one.
+    deployed: dict[str, int] = {}
 
     @property
     def fleet(self) -> str:

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 from fleet.errors import FleetError, SpecError
 from fleet.files import write_atomic
 from fleet.rules import WORLD_STATUS_FILE, unit_log_dir
+from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, LaunchSession, NodeStatus
 from fleet.spec.yaml_source import safe_load
 from fleet.wire.protocol import (
     BundleMessage,
@@ -31,7 +32,6 @@ UNIT_MARKER = "FLEET_AGENT_HOME"  # value: the agent's state directory
 
 if TYPE_CHECKING:
     from fleet.runtime.hosting import HostPool
-    from fleet.runtime.supervisor import LaunchSession
 
 
 def launch_session(bundle: BundleMessage, directory: Path, env: dict[str, str]) -> LaunchSession:
@@ -76,7 +76,8 @@ class Unit:
         self.bundle = bundle
         self.directory = directory
         self.env = env
-        self.generation = 0
+        self.generation = 0  # of the desired state it was last reconciled to
+        self.deployed_generation = 0  # of the deploy that brought the description it runs
         self.session: LaunchSession | None = None
         self.error = ""
         self.seen_running = False
@@ -139,28 +140,18 @@ class Unit:
     # -- reporting ------------------------------------------------------------------------------
 
     def node_states(self) -> list[NodeState]:
+        return [_wire(node) for node in self._node_statuses()]
+
+    def _node_statuses(self) -> list[NodeStatus]:
         if self.session is None:
             return []
-        states = []
         hosted = self.hosts.node_status(self.name) if self.hosted and self.hosts is not None else []
-        for node in [*hosted, *self.session.status()]:
-            assert node.name is not None  # fleet's launch files name every node (fleet.expand.outline)
-            states.append(
-                NodeState(
-                    name=node.name,
-                    fqn=getattr(node, "fqn", "") or "",
-                    state=str(node.state),
-                    pid=node.pid,
-                    restarts=node.restarts or 0,
-                    exit_code=node.exit_code,
-                    uptime=node.uptime,
-                )
-            )
-        return states
+        return [*hosted, *self.session.status()]
 
     def state(self, overrides: dict[str, dict[str, Any]]) -> RobotState:
-        nodes = self.node_states()
-        running = sum(1 for node in nodes if node.state == "running")
+        statuses = self._node_statuses()
+        nodes = [_wire(node) for node in statuses]
+        running = sum(1 for node in nodes if node.state == RUNNING)
         total = len(nodes)
         state: RobotStateName
         if self.error:
@@ -170,19 +161,25 @@ class Unit:
         elif total and running == total:
             state = "running"
             self.seen_running = True
-        elif any(node.state in ("failed", "error") for node in nodes):
+        elif any(node.state in (FAILED, "error") for node in nodes):
             state = "failed"
+        elif self.seen_running or any(node.state in (BACKOFF, EXITED) for node in nodes):
+            # A node that ended is not coming up: it was restarted (and may end again) or is gone.
+            state = "degraded"
         else:
-            state = "degraded" if self.seen_running else "starting"
+            state = "starting"
         return RobotState(
             name=self.name,
             kind=self.bundle.kind,
             state=state,
+            reason=next((node.problem for node in statuses if node.state != RUNNING and node.problem), ""),
             nodes=nodes,
             running=running,
             total=total,
-            restarts=sum(node.restarts for node in nodes),
+            # Per process: the nodes sharing one (composite, a host's robot) restart together.
+            restarts=sum({node.process: node.restarts for node in statuses}.values()),
             generation=self.generation,
+            deployed_generation=self.deployed_generation,
             digest=self.bundle.digest,
             hot_digest=self.bundle.hot_digest,
             overrides=overrides,
@@ -205,7 +202,7 @@ class Unit:
 
     def _started_at(self) -> float | None:
         """Wall time the unit's oldest running process started (None: none runs)."""
-        uptimes = [node.uptime for node in self.node_states() if node.state == "running" and node.uptime]
+        uptimes = [node.uptime for node in self.node_states() if node.state == RUNNING and node.uptime]
         return time.time() - max(uptimes) if uptimes else None
 
     def world_summary(self) -> WorldSummary | None:
@@ -239,6 +236,19 @@ class Unit:
             return self.session.log_file(node)
         except KeyError:
             return None
+
+
+def _wire(node: NodeStatus) -> NodeState:
+    assert node.name is not None  # fleet's launch files name every node (fleet.expand.outline)
+    return NodeState(
+        name=node.name,
+        fqn=node.fqn or "",
+        state=str(node.state),
+        pid=node.pid,
+        restarts=node.restarts or 0,
+        exit_code=node.exit_code,
+        uptime=node.uptime,
+    )
 
 
 def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) -> dict[str, str]:

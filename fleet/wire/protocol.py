@@ -403,11 +403,15 @@ class RobotState(BaseModel):
     name: str
     kind: Literal["robot", "world"] = "robot"
     state: RobotStateName
+    reason: str = ""  # why it is not running, in words, as its agent sees it (a node that ended, ...)
     nodes: list[NodeState] = []
     running: int = 0
     total: int = 0
     restarts: int = 0
     generation: int = 0  # the apply generation this unit last reconciled to
+    # The generation of the deploy that brought the description it runs (0: unknown): a later
+    # deploy that leaves it unchanged does not change it.
+    deployed_generation: int = 0
     digest: str = ""
     hot_digest: str = ""
     overrides: dict[str, dict[str, Any]] = {}  # node -> parameter -> value set live

@@ -111,11 +111,16 @@ def test_changing_one_robot_restarts_only_it(cluster):
     table = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--connect", cluster.endpoint)
     assert "sleeper.period 1.0 -> 2.0" in table.stdout, table.stdout
 
+    deployed = {row.name: row.deployed_generation for row in cluster.view("tiny").robots}
     outcome = cluster.deploy(spec, sets=["robot2.sleeper.period=2.0"])
     assert outcome.ok, (outcome.replies, outcome.view and outcome.view.robots)
     assert outcome.replies["hostB"].changes.restart == ["robot2"]
     assert outcome.replies["hostB"].changes.unchanged == ["robot3"]
     assert outcome.replies["hostA"].changes.nothing
+    # DEPLOYED: the deploy that brought what each robot runs; the unchanged ones keep theirs.
+    rows = cluster.view("tiny").robots
+    assert {row.name: row.generation for row in rows} == dict.fromkeys(ROBOTS, outcome.generation)
+    assert {row.name: row.deployed_generation for row in rows} == {**deployed, "robot2": outcome.generation}
     after = {row.name: row.pids for row in cluster.view("tiny").robots}
     assert after["robot1"] == before["robot1"] and after["robot3"] == before["robot3"]
     assert after["robot2"].isdisjoint(before["robot2"])

@@ -1,8 +1,9 @@
 """`fleet status --watch` in a terminal: it redraws as the fleet changes (a robot deployed while
-watching appears) and Ctrl-C ends it cleanly."""
+watching appears) and Ctrl-C ends it cleanly; with --json it streams a document a line."""
 
 from __future__ import annotations
 
+import json
 import os
 import pty
 import select
@@ -76,3 +77,29 @@ def test_status_watch_redraws_and_ends_on_ctrl_c(fresh_cluster):
         assert watch.process.wait(timeout=10) == 0
     finally:
         watch.close()
+
+
+def test_status_watch_json_streams_one_document_per_line_until_ctrl_c(fresh_cluster):
+    cluster = fresh_cluster
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.wait_agents_online("hostA")
+    assert cluster.deploy(cluster.spec(robots=[{"name": "robot1"}])).ok
+
+    command = ["status", "--watch", "--json", "--fleet", "tiny", "--connect", cluster.endpoint]
+    watch = subprocess.Popen(
+        [sys.executable, "-m", "fleet", *command],
+        env=cluster.env,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert watch.stdout is not None
+        documents = [json.loads(watch.stdout.readline()) for _ in range(3)]  # a refresh a line, as kubectl get -w
+        assert [[row["name"] for row in document["robots"]] for document in documents] == [["robot1"]] * 3
+        watch.send_signal(signal.SIGINT)
+        assert watch.wait(timeout=10) == 0
+    finally:
+        if watch.poll() is None:
+            watch.kill()
+        watch.wait()

@@ -94,6 +94,16 @@ def test_a_restarted_robot_is_not_running_on_its_old_processes_commands():
     assert got["r1"] == ("running", "")
 
 
+def test_a_robot_whose_node_came_back_from_an_exit_is_degraded_not_starting():
+    # Its controller ended (a refused parameter, a crash) and runs again since 1 s: not a start.
+    respawned = unit("r1", OLD, 1.0)
+    respawned.nodes[1].restarts = 3
+    got = rows(
+        status("sim", [unit("world")], world(r1={"cmd_age": None, "odom_subscribers": 1})), status("rack", [respawned])
+    )
+    assert got["r1"] == ("degraded", "no cmd_vel from it has reached the world yet")
+
+
 def test_one_respawned_node_leaves_a_robot_running_on_the_others_commands():
     got = rows(status("sim", [unit("world")], world(age=0.4, r1=FLOWING)), status("rack", [unit("r1", OLD, 0.2)]))
     assert got["r1"] == ("running", "")

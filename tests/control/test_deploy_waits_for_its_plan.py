@@ -8,6 +8,10 @@ shows as `pending` (the old plan places it, no agent runs it), and the deploy en
 everything went as asked (test_removing_a_robot_stops_it in test_control_cluster.py, now and then
 under two suites at once).  Here a client whose registry takes the plan one status late plays the
 router's lag; the expansion and the deploy are fleet's own code.
+
+What a deploy waits for, with the same stand-in: it stops waiting for a robot whose node keeps
+exiting, counts a respawned node as up only once it has run steadily, and without waiting for the
+robots it is ok once the router and the agents took it.
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ from pathlib import Path
 import yaml
 
 from fleet.client import deploy, down
+from fleet.client.deployment import CRASH_LOOP
 from fleet.expand import expand_fleet
+from fleet.rules import STABLE_AFTER
 from fleet.spec import load_spec
 from fleet.wire import protocol as p
 
@@ -43,10 +49,7 @@ class LaggingRouter:
                 generation=generation,
                 reconciled_generation=generation,
                 domain_id=0,
-                robots=[
-                    p.RobotState(name=name, state="running", running=1, total=1, generation=generation)
-                    for name in names
-                ],
+                robots=[self.robot(name, generation) for name in names],
                 time=time.time(),
             )
             for agent, (generation, names) in self.agents.items()
@@ -56,6 +59,11 @@ class LaggingRouter:
         self.plans += self.arriving  # taken after this answer
         self.arriving = []
         return statuses, [registry]
+
+    def robot(self, name: str, generation: int) -> p.RobotState:
+        """What the agent says of a robot it runs at `generation`."""
+        node = p.NodeState(name="sleeper", state="running", pid=1, uptime=30.0)
+        return p.RobotState(name=name, state="running", nodes=[node], running=1, total=1, generation=generation)
 
     def send_applies(self, requests):
         replies = {}
@@ -146,3 +154,66 @@ def test_down_returns_once_the_router_holds_its_empty_plan():
     assert list(replies) == ["hostA"] and replies["hostA"].accepted  # type: ignore[union-attr]
     assert router.answered is not None and router.answered.plan is not None
     assert router.answered.plan.robots == {}, "down returned before the router held its plan"
+
+
+class CrashingRouter(LaggingRouter):
+    """robot2's node ends at every start (a refused parameter): restarted `restarts` times, it
+    waits for the next one; robot1 runs, or still starts when `starting`."""
+
+    def __init__(self, robots: list[str], generation: int, restarts: int, starting: bool = False):
+        super().__init__(robots, generation)
+        self.restarts = restarts
+        self.starting = starting
+
+    def robot(self, name: str, generation: int) -> p.RobotState:
+        if name == "robot1" and self.starting:
+            return p.RobotState(name=name, state="starting", total=1, generation=generation)
+        if name != "robot2":
+            return super().robot(name, generation)
+        node = p.NodeState(name="sleeper", state="backoff", restarts=self.restarts, exit_code=2)
+        reason = "sleeper exited with code 2"
+        return p.RobotState(name=name, state="degraded", reason=reason, nodes=[node], total=1, generation=generation)
+
+
+def test_a_deploy_stops_waiting_for_a_robot_whose_node_keeps_exiting(tmp_path):
+    router = CrashingRouter(["robot1", "robot2"], generation=1, restarts=CRASH_LOOP)
+    began = time.monotonic()
+
+    outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), timeout=10.0)  # type: ignore[arg-type]
+
+    assert time.monotonic() - began < 5.0 and not outcome.timed_out and not outcome.ok
+    # Once is not a loop (a node may end once while the robot comes up), nor is a robot still starting.
+    for router in (
+        CrashingRouter(["robot1", "robot2"], generation=1, restarts=CRASH_LOOP - 1),
+        CrashingRouter(["robot1", "robot2"], generation=1, restarts=CRASH_LOOP, starting=True),
+    ):
+        outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), timeout=1.0)  # type: ignore[arg-type]
+        assert outcome.timed_out and not outcome.ok
+
+
+def test_a_deploy_that_only_waits_for_the_router_is_ok_once_taken(tmp_path):
+    router = CrashingRouter(["robot1", "robot2"], generation=1, restarts=0, starting=True)
+
+    outcome = deploy(router, tiny_expansion(tmp_path, ["robot1", "robot2"]), wait=False, timeout=5.0)  # type: ignore[arg-type]
+
+    assert outcome.recorded and not outcome.view.all_running  # type: ignore[union-attr]
+    assert outcome.ok and outcome.to_json()["ok"] is True
+
+
+class RespawningRouter(LaggingRouter):
+    """robot1's node was restarted `uptime` seconds ago (it had ended): it runs, for now."""
+
+    def __init__(self, robots: list[str], generation: int, uptime: float):
+        super().__init__(robots, generation)
+        self.uptime = uptime
+
+    def robot(self, name: str, generation: int) -> p.RobotState:
+        node = p.NodeState(name="sleeper", state="running", pid=2, restarts=1, uptime=self.uptime)
+        return p.RobotState(name=name, state="running", nodes=[node], running=1, total=1, generation=generation)
+
+
+def test_a_deploy_counts_a_respawned_node_as_up_once_it_has_run_steadily(tmp_path):
+    expansion = tiny_expansion(tmp_path, ["robot1"])
+    assert deploy(RespawningRouter(["robot1"], 1, uptime=STABLE_AFTER + 1), expansion, timeout=5.0).ok  # type: ignore[arg-type]
+    # Running for a moment between two exits is not up.
+    assert deploy(RespawningRouter(["robot1"], 1, uptime=1.0), expansion, timeout=1.0).timed_out  # type: ignore[arg-type]

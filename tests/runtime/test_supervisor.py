@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -143,6 +144,30 @@ def test_respawn_waits_respawn_delay(prefix, write_launch, tmp_path):
         time.sleep(0.3)
         assert session.status()[0].restarts == 0
         poll(lambda: session.status()[0].restarts, until=lambda n: n >= 1, timeout=3, interval=0.05, what="a respawn")
+
+
+def test_a_node_that_ended_says_how_how_often_and_its_last_words(prefix, write_launch, tmp_path):
+    refusal = "parameter 'max_speed' = 9.0 is out of range"
+    prefix.add("refuser", f'#!/bin/sh\necho starting\necho "{refusal}" >&2\nexit 2\n')
+    session = session_for(
+        prefix,
+        write_launch,
+        tmp_path,
+        "- node: {pkg: demo, exec: refuser, name: controller, respawn: 'true', respawn_delay: 0.1}\n",
+    )
+    with session:
+        status = poll(
+            lambda: session.status()[0],
+            until=lambda status: status.state == "backoff" and status.restarts >= 1,
+            timeout=10,
+            interval=0.02,
+            what="the refuser respawned and ended again",
+        )
+        assert re.fullmatch(
+            r"controller exited with code 2 \(restarted \d+ times?\): parameter 'max_speed' = 9.0 is out of range",
+            status.problem,
+        ), status.problem
+    assert supervisor.ended_problem("composite-1", -9, 0) == "composite-1 was killed by SIGKILL"
 
 
 def test_backoff_grows_exponentially():
