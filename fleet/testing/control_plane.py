@@ -5,6 +5,13 @@ way a robot computer crashes and reboots.  They listen and connect on a free loo
 keep their state under one directory; every process (and every node the agents start, which
 inherit the environment) carries an environment marker, so whatever is left at the end can be
 found and stopped.
+
+Router and agents die with the test process, even when it is SIGKILLed (a CI runner, an IDE's
+stop button, the OOM killer): they are forked with PR_SET_PDEATHSIG, and an agent's nodes and
+helpers die with it in turn.  Otherwise they would outlive it holding the fleet's ROS domain,
+whose lock the dead process released.  The kernel sends that signal when the *thread* that
+forked them ends, so start and restart a fleet from a thread that outlives it: the main thread,
+where pytest runs tests and fixtures.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fleet import rules
+from fleet.lifetime import die_with_parent
 from fleet.testing.isolation import free_tcp_port
 from fleet.testing.poll import WaitTimeout, poll
 
@@ -54,6 +62,7 @@ class ControlPlane:
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
+                preexec_fn=die_with_parent,  # see the module's docstring
             )
         self.processes[key] = process
         return process
