@@ -350,19 +350,25 @@ class FleetHandle:
         """A robot's topic (or node) name: topic("robot1", "odom") -> "/robot1/odom"."""
         return name if name.startswith("/") else f"{self.namespace(robot)}/{name}"
 
-    def subscribe(self, robot: str, topic: str, message_type=None, keep: int = 1000):
+    def subscribe(self, robot: str, topic: str, message_type=None, keep: int = 1000, qos=None):
         """Collect a robot's messages (a fleet.testing.ros.Subscription: .messages, .last, .count).
-        Without message_type the type is looked up in the ROS graph.  Messages arrive while the
+        Without message_type the type is looked up in the ROS graph.  Without qos (an rclpy
+        QoSProfile or a depth) the subscription takes what the topic's publishers in the graph
+        offer (best effort if any is; see RosProbe.publisher_qos).  Messages arrive while the
         test waits through this handle (wait_for, wait_sim, spin)."""
         name = self.topic(robot, topic)
         if message_type is None:
             message_type = self._graph_type(name)
-        return self.ros.subscribe(name, message_type, keep)
+        return self.ros.subscribe(name, message_type, keep, qos=qos)
 
     def publish(self, robot: str, topic: str, message) -> None:
+        """Publish on a robot's topic.  The first message on a topic waits (up to 5 s of wall
+        time) until the topic's subscribers are matched with the new publisher, so it is not
+        lost (see RosProbe.publish)."""
         self.ros.publish(self.topic(robot, topic), message)
 
     def get_param(self, robot: str, node: str, name: str) -> Any:
+        """A parameter of a running node; fleet.testing.ros.NoSuchParameter if it has none of that name."""
         return self.ros.get_parameters(self.topic(robot, node), [name])[0]
 
     def set_param(self, robot: str, node: str, name: str, value: Any) -> tuple[bool, str]:

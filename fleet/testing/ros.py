@@ -19,6 +19,10 @@ from typing import Any
 from fleet.testing.poll import poll
 
 
+class NoSuchParameter(LookupError):
+    """A node was asked for a parameter it does not declare."""
+
+
 class Subscription:
     """Messages received on one topic, newest last."""
 
@@ -137,18 +141,51 @@ class RosProbe:
 
     # --- topics ------------------------------------------------------------------------------
 
-    def subscribe(self, topic: str, message_type, keep: int = 100) -> Subscription:
-        from rclpy.qos import qos_profile_sensor_data
-
+    def subscribe(self, topic: str, message_type, keep: int = 100, qos=None) -> Subscription:
+        """Collect messages of `topic`.  `qos` (an rclpy QoSProfile or a depth) defaults to what
+        the topic's publishers offer (publisher_qos)."""
         collector = Subscription(keep)
-        qos = qos_profile_sensor_data if topic.endswith(("scan", "odom")) else 10
-        self.node.create_subscription(message_type, topic, collector._receive, qos)
+        self.node.create_subscription(
+            message_type, topic, collector._receive, qos if qos is not None else self.publisher_qos(topic)
+        )
         return collector
 
-    def publish(self, topic: str, message) -> None:
+    def publisher_qos(self, topic: str):
+        """A subscription QoS every publisher of `topic` in the graph now delivers to: best effort
+        if any of them is (a reliable subscription gets nothing from a best-effort publisher),
+        else reliable; transient local if all of them are.  Without publishers yet, a guess from
+        the name: sensor streams (scan, odom) are best effort."""
+        from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data
+
+        publishers = self.node.get_publishers_info_by_topic(topic)
+        if not publishers:
+            return qos_profile_sensor_data if topic.endswith(("scan", "odom")) else 10
+        offered = [p.qos_profile for p in publishers]
+        best_effort = any(q.reliability == QoSReliabilityPolicy.BEST_EFFORT for q in offered)
+        # Latched topics (every publisher transient local) hand their last messages to late joiners.
+        latched = all(q.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+        return QoSProfile(
+            depth=10,
+            reliability=QoSReliabilityPolicy.BEST_EFFORT if best_effort else QoSReliabilityPolicy.RELIABLE,
+            durability=QoSDurabilityPolicy.TRANSIENT_LOCAL if latched else QoSDurabilityPolicy.VOLATILE,
+        )
+
+    def publish(self, topic: str, message, match_timeout: float = 5.0) -> None:
+        """Publish `message` on `topic`.  The first message of a new publisher waits (up to
+        `match_timeout` wall seconds) until every subscriber of the topic in the graph, and at
+        least one, is matched with it: sent before, DDS drops it, knowing nobody to send it to.
+        (So the first publish to a topic nobody subscribes to takes `match_timeout`.)"""
         publisher = self._publishers.get(topic)
         if publisher is None:
             publisher = self._publishers[topic] = self.node.create_publisher(type(message), topic, 10)
+
+            def matched() -> bool:
+                count = publisher.get_subscription_count()
+                return count > 0 and count >= self.node.count_subscribers(topic)
+
+            deadline = time.monotonic() + match_timeout
+            while not matched() and time.monotonic() < deadline:
+                self._spin_once(0.02)  # subscriptions keep receiving meanwhile
         publisher.publish(message)
 
     # --- parameters --------------------------------------------------------------------------
@@ -173,6 +210,9 @@ class RosProbe:
         from rclpy.parameter import parameter_value_to_python
 
         result = self._call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=names), timeout)
+        # A node answers with fewer values (none, with rclpy) when a name is not declared.
+        if len(result.values) != len(names):
+            raise NoSuchParameter(f"node {node} has no parameter {' or '.join(map(repr, names))}")
         return [parameter_value_to_python(value) for value in result.values]
 
     def set_parameter(self, node: str, name: str, value: Any, timeout: float = 20.0) -> tuple[bool, str]:
