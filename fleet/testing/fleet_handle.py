@@ -51,6 +51,14 @@ OPEN_HANDLES: weakref.WeakSet[FleetHandle] = weakref.WeakSet()
 FleetTimeout = WaitTimeout
 
 
+class UnknownRobot(KeyError):
+    """A robot name the fleet does not have (a typo, say): raised wherever a robot is named, so
+    `assert not fleet.contacts("alhpa")` cannot pass by looking at nobody."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])  # KeyError would show the message quoted
+
+
 class FleetLeak(AssertionError):
     """Processes of the fleet were still alive after it was stopped (they were killed)."""
 
@@ -140,6 +148,17 @@ class FleetHandle:
                 + "\n".join(described)
             )
 
+    def robots(self) -> list[str]:
+        """The robots of the current spec."""
+        return [robot.name for robot in self.spec.robots]
+
+    def _known(self, robot: str, world: bool = False) -> str:
+        """`robot`, if the fleet has it (or it is the world, where `world` allows it)."""
+        names = self.robots() + ([WORLD] if world and self.expansion.bundle(WORLD) is not None else [])
+        if robot not in names:
+            raise UnknownRobot(f"fleet {self.name} has no robot {robot!r}; it has: {', '.join(names)}")
+        return robot
+
     def agents(self) -> list[str]:
         """The agents the current spec places robots (or the world) on."""
         return sorted({bundle.agent for bundle in self.expansion.bundles})
@@ -212,6 +231,7 @@ class FleetHandle:
 
     def robot_status(self, robot: str):
         """The status row (fleet.plan.view.RobotRow) of a robot, or of `world`."""
+        self._known(robot, world=True)
         rows = self.status().find_robot(robot)
         if not rows:
             raise KeyError(f"fleet {self.name} has no robot {robot!r} in status")
@@ -301,19 +321,21 @@ class FleetHandle:
         return float(self._world()["sim_time"])
 
     def pose(self, robot: str) -> Pose:
-        entry = self._world()["robots"][robot]["pose"]
+        entry = self._world()["robots"][self._known(robot)]["pose"]
         return Pose(entry["x"], entry["y"], entry["yaw"])
 
     def velocity(self, robot: str) -> tuple[float, float]:
         """(linear m/s, angular rad/s) of a robot as the world simulates it."""
-        entry = self._world()["robots"][robot]["velocity"]
+        entry = self._world()["robots"][self._known(robot)]["velocity"]
         return entry["linear"], entry["angular"]
 
     def battery(self, robot: str) -> float | None:
-        return self._world()["robots"][robot].get("battery")
+        return self._world()["robots"][self._known(robot)].get("battery")
 
     def contacts(self, robot: str | None = None) -> list[dict[str, Any]]:
         """The world's recent contacts ({sim_time, a, b, kind}), those involving `robot` if given."""
+        if robot is not None:
+            self._known(robot)
         last = self._world().get("contacts", {}).get("last", [])
         return [c for c in last if robot is None or robot in (c.get("a"), c.get("b"))]
 
@@ -341,14 +363,15 @@ class FleetHandle:
         return self._probe
 
     def namespace(self, robot: str) -> str:
-        spec = self.spec.robot(robot)
-        if spec is None:
-            raise KeyError(f"fleet {self.name} has no robot {robot!r}")
+        spec = self.spec.robot(self._known(robot))
+        assert spec is not None
         return (spec.namespace or f"/{robot}").rstrip("/")
 
     def topic(self, robot: str, name: str) -> str:
-        """A robot's topic (or node) name: topic("robot1", "odom") -> "/robot1/odom"."""
-        return name if name.startswith("/") else f"{self.namespace(robot)}/{name}"
+        """A robot's topic (or node) name: topic("robot1", "odom") -> "/robot1/odom"; an absolute
+        name stays as it is."""
+        namespace = self.namespace(robot)  # checks the robot, also for an absolute name
+        return name if name.startswith("/") else f"{namespace}/{name}"
 
     def subscribe(self, robot: str, topic: str, message_type=None, keep: int = 1000, qos=None):
         """Collect a robot's messages (a fleet.testing.ros.Subscription: .messages, .last, .count).
@@ -531,9 +554,9 @@ class FleetHandle:
     def logs(self, robot: str, lines: int = 20) -> dict[str, list[str]]:
         """The last lines of each process log of a robot (or the world), read from its agent's
         state directory: {"controller-1": [...], ...}."""
-        bundle = self.expansion.bundle(robot)
+        bundle = self.expansion.bundle(self._known(robot, world=True))
         if bundle is None:
-            raise KeyError(f"fleet {self.name} has no robot {robot!r}")
+            raise KeyError(f"fleet {self.name} runs no bundle for {robot!r}")
         directory = unit_log_dir(unit_dir(self.control.agent_dir(bundle.agent), self.name, robot))
         found = {}
         for path in sorted(directory.glob("*.log")):
