@@ -551,15 +551,21 @@ class FleetHandle:
 
     # -- diagnostics ----------------------------------------------------------------------------
 
-    def logs(self, robot: str, lines: int = 20) -> dict[str, list[str]]:
-        """The last lines of each process log of a robot (or the world), read from its agent's
-        state directory: {"controller-1": [...], ...}."""
+    def log_dir(self, robot: str) -> Path:
+        """Where the agent writes the logs of a robot's (or the world's) processes.  They stay
+        there after the fleet is closed (the fleet's directory is the test's), unless a deploy
+        removed the robot: its agent then deletes its unit directory, logs included."""
         bundle = self.expansion.bundle(self._known(robot, world=True))
         if bundle is None:
             raise KeyError(f"fleet {self.name} runs no bundle for {robot!r}")
-        directory = unit_log_dir(unit_dir(self.control.agent_dir(bundle.agent), self.name, robot))
+        return unit_log_dir(unit_dir(self.control.agent_dir(bundle.agent), self.name, robot))
+
+    def logs(self, robot: str, lines: int = 20) -> dict[str, list[str]]:
+        """The last lines of each process log of a robot (or the world), by process: a node
+        hosted in a shared process (isolation `agent`) by its name ({"controller": [...]}), a
+        process of its own by its launch name ({"controller-1": [...], "world-1": [...]})."""
         found = {}
-        for path in sorted(directory.glob("*.log")):
+        for path in sorted(self.log_dir(robot).glob("*.log")):
             found[path.stem] = path.read_text(errors="replace").splitlines()[-lines:]
         return found
 

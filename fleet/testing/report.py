@@ -77,7 +77,10 @@ def node_logs_text(fleet, lines: int = LOG_LINES) -> str:
     for bundle in fleet.expansion.bundles:
         for process, text in fleet.logs(bundle.name, lines).items():
             parts.append(f"{bundle.name}/{process}:\n" + _indent("\n".join(text) or "(empty)"))
-    return "\n".join(parts) or "(no logs)"
+    # Only the last lines are shown here: say where the whole logs stay after the test.
+    units = sorted({str(fleet.log_dir(bundle.name).parent.parent) for bundle in fleet.expansion.bundles})
+    where = [f"whole logs (kept after the test): {directory}/<robot>/logs/" for directory in units]
+    return "\n".join(["\n".join(parts) or "(no logs)", *where])
 
 
 def world_text(fleet, snapshot_path: str | Path | None) -> str:

@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import psutil
 import pytest
@@ -73,6 +74,10 @@ def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
         assert f"fleet safety_stop: {section}" in output, output
     assert re.search(r"scout +local +running +3/3", output), output  # the status table
     assert "[scout.controller]: started:" in output  # a node's log
+    # The report shows the last lines only; the whole logs outlive the fleet, for CI to keep.
+    units = re.search(r"whole logs \(kept after the test\): (\S+)/<robot>/logs/", output)
+    assert units, output
+    assert "[scout.controller]: started:" in (Path(units.group(1)) / "scout" / "logs" / "controller.log").read_text()
     snapshot = re.search(r"snapshot: (\S+\.png)", output)
     assert snapshot and os.path.getsize(snapshot.group(1)) > 10_000, output
 
