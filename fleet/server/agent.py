@@ -347,27 +347,34 @@ class Agent:
             if held is not None and request.generation == held_generation and held.request.bundles != request.bundles:
                 reply.reason = f"generation {held_generation} was already applied with other content"
                 return reply
+            state = FleetState(request=request)
+            if held and not request.discovery_server and held.request.discovery_host == request.discovery_host:
+                state.discovery_host_address = held.discovery_host_address  # still that host's
             current = {b.name: b for b in held.request.bundles} if held else {}
             desired = {b.name: b for b in request.bundles}
-            failed = {name for (fleet, name), unit in self._units.items() if fleet == request.fleet and unit.error}
-            changes = plan_changes(current, desired, failed)
+            # Units that failed are tried again; units that would run in another ROS environment
+            # (the fleet's discovery server moved, or its domain) restart: the reply says so, as
+            # the reconcile does it.
+            env = self._unit_env(request.domain_id, self._discovery_server(state))
+            again = {
+                name
+                for (fleet, name), unit in self._units.items()
+                if fleet == request.fleet and (unit.error or (unit.session is not None and unit.env != env))
+            }
+            changes = plan_changes(current, desired, again)
             # Overrides survive redeploys of an unchanged robot; a changed robot gets the spec's values.
-            overrides = {}
             if held:
-                overrides = {
+                state.overrides = {
                     robot: values
                     for robot, values in held.overrides.items()
                     if robot in changes.unchanged or robot in changes.hot_update
                 }
-            state = FleetState(request=request, overrides=overrides)
             # What it runs came with an earlier deploy only when this one leaves it unchanged.
             kept = held.deployed if held else {}
             state.deployed = {
                 name: kept.get(name, held.generation) if held and name in changes.unchanged else request.generation
                 for name in desired
             }
-            if held and not request.discovery_server and held.request.discovery_host == request.discovery_host:
-                state.discovery_host_address = held.discovery_host_address  # still that host's
             self.store.save(state)  # persisted before we acknowledge
             self._fleets[request.fleet] = state
             # Units already running exactly this bundle are at the new generation now: saying so

@@ -236,6 +236,21 @@ def test_a_robot_that_cannot_start_on_its_agent_leaves_the_whole_fleet_as_it_was
     assert _settled_rows(cluster, "tiny") == before
 
 
+def test_a_deploy_that_moves_the_discovery_server_says_it_restarts_the_robots(cluster):
+    """Switching the transport gives every agent its own discovery server: no bundle changes, but
+    each robot restarts in its new ROS environment, and the deploy says so instead of "nothing
+    changed" (the agents' replies said `unchanged` while they restarted everything)."""
+    cluster.deploy(cluster.spec())
+    before = {row.name: row.pids for row in cluster.view("tiny").robots}
+    zenoh = cluster.spec(ros={"domain_id": cluster.domain_id, "use_sim_time": False, "transport": "zenoh"})
+    outcome = cluster.deploy(zenoh)
+    assert outcome.ok and not outcome.nothing_changed, (outcome.replies, outcome.view and outcome.view.robots)
+    assert outcome.replies["hostA"].changes.restart == ["robot1"]
+    assert outcome.replies["hostB"].changes.restart == ["robot2", "robot3"]
+    after = {row.name: row.pids for row in cluster.view("tiny").robots}
+    assert all(after[name].isdisjoint(pids) for name, pids in before.items())
+
+
 def test_older_generation_is_refused_and_told(cluster):
     expansion = expand_fleet(load_spec(cluster.spec()), ["robot1.sleeper.period=3.0"])
     older, newer = new_generation(), new_generation()

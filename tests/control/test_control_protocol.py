@@ -169,7 +169,7 @@ def test_plan_changes_hot_updates_hot_files_and_retries_failed_units():
     old = bundle("world", kind="world", entry="world.launch.yaml", files=files, hot_files=["world.yaml"])
     new = dict(old, files={**files, "world.yaml": "a: 2\n"})
     assert plan_changes(messages(old), messages(new)).hot_update == ["world"]
-    assert plan_changes(messages(old), messages(old), failed={"world"}).restart == ["world"]
+    assert plan_changes(messages(old), messages(old), again={"world"}).restart == ["world"]
 
 
 # -- agent files --------------------------------------------------------------------------------
