@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import re
-import shlex
 import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -27,7 +26,7 @@ import yaml
 from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
 from fleet.launchfile import description as d
 from fleet.launchfile import read_launch_file
-from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
+from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, split_command_line
 from fleet.launchfile.substitutions import written as _written
 
 __all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
@@ -538,42 +537,12 @@ class _Interpreter:
         raise LaunchFileError(f"parameter '{name}': value '{text}' is not a bool, int, float, string or list", where)
 
     def command_line(self, parts: Text, scope: _Scope, where: Location, file: Path) -> list[str]:
-        """Split as launch's ExecuteProcess._parse_cmdline does: literal text on (shell-quoted)
-        whitespace, a substitution's value one piece glued to the text it touches.  Its quirks
-        are kept: text of only whitespace ends the argument being built even when there is none,
-        so `args: '   '` passes one empty argument, and so does `$(var a)  $(var b)`."""
-        arguments: list[list[str]] = []
-        current: list[str] = []
-
-        def end() -> None:
-            nonlocal current
-            arguments.append(current)
-            current = []
-
-        for part in parts:
-            if isinstance(part, Subst):
-                current.append(self.resolve_part(part, scope, where, file))
-                continue
-            try:
-                tokens = shlex.split(part)
-            except ValueError as problem:
-                raise LaunchFileError(f"cannot split '{part}': {problem}", where) from None
-            if not tokens:
-                end()
-                continue
-            if part[0].isspace() and current:
-                end()
-            current.append(tokens[0])
-            if len(tokens) > 1:
-                end()
-                current.append(tokens[-1])
-            if len(tokens) > 2:
-                arguments.extend([token] for token in tokens[1:-1])
-            if part[-1].isspace():
-                end()
-        if current:
-            arguments.append(current)
-        return ["".join(argument) for argument in arguments]
+        """The arguments as launch passes them (split_command_line), substitutions resolved."""
+        try:
+            arguments = split_command_line(parts)
+        except ValueError as problem:
+            raise LaunchFileError(f"cannot split '{_written(parts)}': {problem}", where) from None
+        return [self.resolve(argument, scope, where, file) for argument in arguments]
 
 
 def _equal(left: str, right: str) -> bool:

@@ -3,6 +3,7 @@ render refuses, in one line, what the runner would refuse."""
 
 from __future__ import annotations
 
+import json
 import textwrap
 from pathlib import Path
 
@@ -109,3 +110,24 @@ def test_the_python_twin_expresses_every_substitution_the_reader_accepts():
     assert "condition=IfCondition([AndSubstitution([LaunchConfiguration('a')], [NotSubstitution(" in source
     for name in ("FindPackagePrefix", "ThisLaunchFile", "ExecutableInPackage", "EqualsSubstitution"):
         assert f"import {name}\n" in source
+
+
+@pytest.mark.parametrize(
+    "args",
+    ['--robot "t1" --x 0.0', "'a b' c'd'e  \"\"", "x$(var v) y", "$(var v)  $(var v)", "   ", '--name="t 1" -v'],
+)
+def test_the_python_twin_passes_the_arguments_the_runner_passes(tmp_path, args):
+    """One splitter: quotes in `args` mean the same to the runner and in the .launch.py."""
+    from fleet.expand.python_launch import python_launch_source
+
+    prefix = FakePrefix(tmp_path / "prefix")
+    prefix.add("talker", "#!/bin/sh\n")
+    launch = tmp_path / "r.launch.yaml"
+    node_yaml = f"- node:\n    pkg: demo\n    exec: talker\n    args: {json.dumps(args)}\n"
+    launch.write_text("launch:\n- let: {name: v, value: V}\n" + node_yaml)
+    (node,) = load_launch_file(launch, env=prefix.env()).nodes
+    ran = node.cmd[1 : node.cmd.index("--ros-args")]
+    source = python_launch_source({"launch": [{"node": {"pkg": "demo", "exec": "talker", "args": args}}]}, "c")
+    written = source.split("arguments=", 1)[1].split("\n", 1)[0].rstrip(",")
+    passed = eval(written, {"LaunchConfiguration": lambda name: "V"})  # the twin's substitutions, resolved
+    assert ["".join(argument) if isinstance(argument, list) else argument for argument in passed] == ran
