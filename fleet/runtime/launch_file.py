@@ -30,7 +30,7 @@ from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, spl
 from fleet.launchfile.substitutions import written as _written
 
 __all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
-from fleet.rules import ROS_TOKEN
+from fleet.rules import ROS_TOKEN, remap_problem
 from fleet.runtime import ament
 
 # ---------------------------------------------------------------------------------------------
@@ -328,7 +328,8 @@ class _Interpreter:
             # The list is changed in place: see _Scope.copy.
             scope.configurations.setdefault("global_params", []).append((name, value))
         elif isinstance(action, d.SetRemap):
-            scope.configurations.setdefault("ros_remaps", []).append((text(action.source), text(action.target)))
+            remap = _checked_remap(text(action.source), text(action.target), where)
+            scope.configurations.setdefault("ros_remaps", []).append(remap)
         elif isinstance(action, d.Node):
             self.drafts.append(self.node(action, scope, file))
         elif isinstance(action, d.Executable):
@@ -479,7 +480,7 @@ class _Interpreter:
             else:
                 params.append(("inline", key, self.inline_param(param, scope, file)))
         remaps = list(scope.configurations.get("ros_remaps", []))
-        remaps += [(text(source), text(target)) for source, target in node.remaps]
+        remaps += [_checked_remap(text(source), text(target), where) for source, target in node.remaps]
         exec_name = None if node.exec_name is None else text(node.exec_name)
         self.sequence += 1
         return _NodeDraft(
@@ -543,6 +544,13 @@ class _Interpreter:
         except ValueError as problem:
             raise LaunchFileError(f"cannot split '{_written(parts)}': {problem}", where) from None
         return [self.resolve(argument, scope, where, file) for argument in arguments]
+
+
+def _checked_remap(source: str, target: str, where: Location) -> tuple[str, str]:
+    """The remap, if rcl can parse `-r source:=target` (else the node would not start)."""
+    if problem := remap_problem(source, target):
+        raise LaunchFileError(f"invalid remap {source!r} -> {target!r}: {problem}", where)
+    return source, target
 
 
 def _equal(left: str, right: str) -> bool:

@@ -477,6 +477,20 @@ def test_undefined_var(load):
         ),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: a}]}\n", ["needs 'to'"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: x}\n", ["list of mappings"], 2),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, remap: [{from: odom, to: '/\"t1\"/odom'}]}\n",
+            ["invalid remap 'odom' -> '/\"t1\"/odom'", "to '/\"t1\"/odom' is not a ROS name"],
+            2,
+        ),
+        (
+            "launch:\n- let: {name: t, value: shadow cmd vel!}\n"
+            "- node: {pkg: demo, exec: talker, remap: [{from: cmd_vel, to: $(var t)}]}\n",
+            ["to 'shadow cmd vel!' is not a ROS name"],
+            3,
+        ),
+        ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: cmd-vel, to: x}]}\n", ["from 'cmd-vel'"], 2),
+        ("launch:\n- set_remap: {from: a, to: 2b}\n", ["to '2b' is not a ROS name"], 2),
+        ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: __ns, to: x}]}\n", ["absolute namespace"], 2),
         ("launch:\n- group: {scoped: 3, children: []}\n", ["'scoped' of 'group' must be true or false"], 2),
         ("launch:\n- group: {scoped: false}\n", ["needs a list of actions"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker}\n  other: 1\n", ["exactly one key"], 2),
