@@ -205,7 +205,7 @@ def _token_list(text: Any) -> str:
     return "[" + ", ".join(_text_expr(argument) for argument in split_arguments(str(text))) + "]"
 
 
-def split_arguments(text: str) -> list[Text]:
+def split_arguments(text: str) -> tuple[Text, ...]:
     """The arguments of `args`/`ros_args`/`cmd` text, as launch's frontend splits them."""
     return split_command_line(parse_substitutions(text))
 

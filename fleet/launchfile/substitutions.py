@@ -6,6 +6,7 @@ whitespace, may be quoted, and may themselves hold substitutions.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -154,7 +155,8 @@ def written(text: Text) -> str:
     return "".join(out)
 
 
-def split_command_line(parts: Text) -> list[Text]:
+@functools.lru_cache(maxsize=4096)  # a fleet's robots pass the same arguments, mostly
+def split_command_line(parts: Text) -> tuple[Text, ...]:
     """The arguments of `args`/`ros_args`/`cmd` text, each a Text, split as launch's
     ExecuteProcess._parse_cmdline does: literal text on (shell-quoted) whitespace, a
     substitution one piece glued to the text it touches.  Its quirks are kept: text of only
@@ -191,4 +193,4 @@ def split_command_line(parts: Text) -> list[Text]:
             end()
     if current:
         arguments.append(tuple(current))
-    return arguments
+    return tuple(arguments)

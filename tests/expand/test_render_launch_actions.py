@@ -38,7 +38,7 @@ launch:
         children:
         - executable: {cmd: /bin/true, name: late}
 - include:
-    file: $(dirname)/extra.launch.yaml
+    file: $(env EXTRA_LAUNCH_DIR)/extra.launch.yaml
     arg: [{name: robot, value: {{ robot.name }}}]
 """
 
@@ -68,7 +68,9 @@ def test_a_template_using_the_tutorials_actions_renders_and_runs(tmp_path):
     prefix = FakePrefix(tmp_path / "prefix")
     prefix.add("talker", "#!/bin/sh\nexec sleep 100\n")
     launch = next(out / name for name in robot.files if name.endswith(".launch.yaml"))
-    ran = load_launch_file(launch, env=prefix.env(), params_dir=tmp_path / "params")
+    # A file outside the bundle (an agent's unit directory holds only the bundle's files).
+    env = {**prefix.env(), "EXTRA_LAUNCH_DIR": str(out)}
+    ran = load_launch_file(launch, env=env, params_dir=tmp_path / "params")
     assert [node.process_name for node in ran.nodes] == ["talker-1", "talker-2", "late-3"]
     assert ran.logs == ["r1"]
     python = next(text for name, text in robot.files.items() if name.endswith(".launch.py"))
