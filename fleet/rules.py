@@ -242,3 +242,47 @@ def resolve_topic_name(name: str, namespace: str) -> str:
     """The full name of topic `name` (already checked by topic_name_problem) as a node in
     `namespace` would resolve it: absolute names stay, relative ones go below the namespace."""
     return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
+
+
+# A name token as rcl's lexer reads a remap rule (rcl/src/rcl/arguments.c, lexer.c): letters,
+# digits and underscores, not starting with a digit, no '__' anywhere ('__ns' and the like are
+# lexemes of their own).  No length bound at parse time.
+_REMAP_TOKEN = re.compile(r"(?!.*__)[A-Za-z_][A-Za-z0-9_]*")
+_REMAP_SCHEMES = ("rostopic://", "rosservice://")
+_REMAP_NAME_RULE = (
+    "tokens of letters, digits and underscores, not starting with a digit and without '__', "
+    "joined by '/', optionally after '/' or '~/'"
+)
+
+
+def _remap_name_problem(name: str, side: str) -> str | None:
+    relative = name.removeprefix("~/") if name.startswith("~/") else name.removeprefix("/")
+    if all(_REMAP_TOKEN.fullmatch(token) for token in relative.split("/")):
+        return None
+    return f"{side} {name!r} is not a ROS name ({_REMAP_NAME_RULE})"
+
+
+def remap_problem(source: str, target: str) -> str | None:
+    """Why a node could not start with the remap rule `-r source:=target` (launch_ros passes a
+    remap's `from` and `to` so), or None: rcl refuses the whole command line over a rule it
+    cannot parse.  What rcl accepts: `[node:][rostopic://|rosservice://]name:=name` with names
+    plain, absolute (`/a/b`) or private (`~/a`); `[node:]__node:=token` (also `__name`) and
+    `[node:]__ns:=/absolute/namespace`.  Checked against rclpy's own parse (tests)."""
+    match = source
+    prefix, colon, rest = source.partition(":")
+    if colon and not source.startswith(_REMAP_SCHEMES):
+        if not _REMAP_TOKEN.fullmatch(prefix):
+            return f"from {source!r}: {prefix!r} before ':' is not a node name"
+        match = rest
+    scheme = next((scheme for scheme in _REMAP_SCHEMES if match.startswith(scheme)), "")
+    match = match.removeprefix(scheme)
+    if not scheme and match in ("__node", "__name"):
+        if not _REMAP_TOKEN.fullmatch(target):
+            return f"to {target!r} is not a node name (letters, digits and underscores, not starting with a digit)"
+        return None
+    if not scheme and match == "__ns":
+        tokens = target.removesuffix("/").split("/")
+        if target != "/" and (tokens[0] != "" or not all(_REMAP_TOKEN.fullmatch(token) for token in tokens[1:])):
+            return f"to {target!r} is not an absolute namespace such as /robot1"
+        return None
+    return _remap_name_problem(match, "from") or _remap_name_problem(target, "to")

@@ -209,6 +209,8 @@ def _plan_robot(
                 else ("defaults", "launch_args", name)
             )
             raise SpecError(f"launch argument {name} {problem}", _spec_location(spec, path))
+    if rendered.problem is not None:  # what the agent's check would refuse (robot/robot.launch.yaml:LINE:COL)
+        raise rendered.problem
     for shaped in shape.nodes:
         if problem := node_name_problem(shaped.fqn):
             at: DocPath = ("robots", index, "namespace") if robot.namespace else ("robots", index, "name")

@@ -39,12 +39,15 @@ class LaunchOutline:
     nodes: tuple[NodeOutline, ...]
 
 
-def outline(data: Any, source: SourceMap, template_file: str | Path) -> LaunchOutline:
+def outline(
+    data: Any, source: SourceMap, template_file: str | Path, path: Path | None = None
+) -> tuple[LaunchOutline, d.LaunchDescription]:
     """Outline a rendered launch document (loaded by load_yaml); raises TemplateError when the
-    runner would refuse it."""
+    runner would refuse it.  Also the description read, as the launch file at `path` (default:
+    the template's)."""
     where = Location(template_file)
     try:
-        description = read_launch_document(data, source, Path(str(template_file)))
+        description = read_launch_document(data, source, path or Path(str(template_file)))
     except LaunchFileError as problem:
         place = problem.location
         at = f"line {place.line}, column {place.column} of its output: " if place and place.line else ""
@@ -54,12 +57,9 @@ def outline(data: Any, source: SourceMap, template_file: str | Path) -> LaunchOu
         if isinstance(action, d.DeclareArgument):
             arguments.setdefault(action.name, "" if action.default is None else _written(action.default))
     nodes: list[NodeOutline] = []
+    # Two nodes of one name: the launch interpreter refuses them (check_rendered_launch).
     _walk(description.actions, "/", nodes, where, conditional=False)
-    names = [node.fqn for node in nodes if not node.conditional]
-    duplicates = {name for name in names if names.count(name) > 1}
-    if duplicates:
-        raise TemplateError(f"two nodes would have the same name: {', '.join(sorted(duplicates))}", where)
-    return LaunchOutline(arguments=arguments, nodes=tuple(nodes))
+    return LaunchOutline(arguments=arguments, nodes=tuple(nodes)), description
 
 
 def _walk(actions: list[d.Action], namespace: str, nodes: list[NodeOutline], where: Location, conditional: bool) -> str:

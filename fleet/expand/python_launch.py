@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from fleet.errors import Location, TemplateError
-from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
+from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, split_command_line
 
 _HEADER = """\
 {comment}
@@ -200,27 +200,14 @@ def _boolean(value: Any) -> str:
 
 
 def _token_list(text: Any) -> str:
-    """A whitespace-separated argument string as a list of (substitution) tokens."""
-    return "[" + ", ".join(_expr(token) for token in split_arguments(str(text))) + "]"
+    """An argument string as the list of arguments the embedded runner passes for it: one
+    splitter (split_command_line), so quotes mean the same in both files."""
+    return "[" + ", ".join(_text_expr(argument) for argument in split_arguments(str(text))) + "]"
 
 
-def split_arguments(text: str) -> list[str]:
-    """Split at whitespace outside $(...), as launch's frontend splits `args`/`ros_args`."""
-    tokens, current, depth = [], "", 0
-    for index, char in enumerate(text):
-        if char == "(" and text[index - 1 : index] == "$":
-            depth += 1
-        elif char == ")" and depth:
-            depth -= 1
-        if char.isspace() and depth == 0:
-            if current:
-                tokens.append(current)
-            current = ""
-        else:
-            current += char
-    if current:
-        tokens.append(current)
-    return tokens
+def split_arguments(text: str) -> tuple[Text, ...]:
+    """The arguments of `args`/`ros_args`/`cmd` text, as launch's frontend splits them."""
+    return split_command_line(parse_substitutions(text))
 
 
 def _expr(value: Any) -> str:

@@ -18,12 +18,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from fleet.errors import Location, SpecError, TemplateError
+from fleet.errors import FleetError, LaunchFileError, Location, SpecError, TemplateError
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.python_launch import python_source
 from fleet.expand.shared import SharedTopic
 from fleet.expand.templating import TemplateSet
-from fleet.rules import PARAMS_SUFFIX
+from fleet.launchfile import description as d
+from fleet.rules import LAUNCH_SUFFIX, PARAMS_SUFFIX, PYTHON_LAUNCH_SUFFIX
+from fleet.runtime.launch_file import check_bundle_launch
 from fleet.spec.yaml_source import load_yaml
 
 # Valid ROS name tokens, so the placeholder rendering outlines like a real one.
@@ -39,6 +41,9 @@ class RenderedLaunch:
     template_file: Path
     argument_defaults: dict[str, Any] = field(default_factory=dict)  # as the template's arg() calls give them
     shared: tuple[SharedTopic, ...] = ()  # its share(...) calls
+    # Why an agent's check would refuse to run it (check_rendered_launch), or None; raised by the
+    # expansion once the spec's own checks of the robot (its launch_args) have had their say.
+    problem: FleetError | None = None
 
 
 def params_file_reference(robot: str) -> str:
@@ -93,6 +98,7 @@ class LaunchRenderer:
             template_file=shape.template_file,
             argument_defaults=argument_defaults,
             shared=shared,
+            problem=None if shape.problem is None else _named(shape.problem, name, namespace),
         )
 
     def _parse(
@@ -106,7 +112,12 @@ class LaunchRenderer:
             raise TemplateError(
                 f"rendered invalid YAML{line}: {error.message}", Location(rendered.template_file)
             ) from None
-        shape = outline(document, source, rendered.template_file)
+        shape, description = outline(document, source, rendered.template_file, rendered_launch_path(robot))
+        try:
+            check_rendered_launch(description, robot, rendered.template_file)
+            problem = None
+        except LaunchFileError as error:
+            problem = error
         python = python_source(document, python_comment(robot, template, self.fleet), rendered.template_file)
         return RenderedLaunch(
             text=rendered.text,
@@ -115,7 +126,37 @@ class LaunchRenderer:
             template_file=rendered.template_file,
             argument_defaults=rendered.arguments_asked,
             shared=tuple(rendered.shared),
+            problem=problem,
         )
+
+
+def rendered_launch_path(robot: str) -> Path:
+    """Where `fleet render -o DIR` writes a robot's launch file, relative to DIR."""
+    return Path(robot) / f"{robot}{LAUNCH_SUFFIX}"
+
+
+def check_rendered_launch(description: d.LaunchDescription, robot: str, template_file: Path) -> None:
+    """Run the robot's launch file (read as rendered_launch_path) as an agent's check would
+    (check_bundle_launch: the runner's own interpreter, less what only the agent's computer can
+    tell), located where `fleet render -o DIR` writes it: robot1/robot1.launch.yaml:LINE:COL."""
+    path = description.path
+    files = frozenset(f"{robot}{suffix}" for suffix in (LAUNCH_SUFFIX, PYTHON_LAUNCH_SUFFIX, PARAMS_SUFFIX))
+    try:
+        check_bundle_launch(description, files)
+    except LaunchFileError as error:
+        # The reader places what it reads in the rendered text's source (the template): the
+        # lines and columns are the rendered file's.
+        place = error.location
+        where = Location(path, place.line, place.column) if place is not None else Location(path)
+        raise type(error)(f"{error.message} (rendered from {template_file.name})", where) from None
+
+
+def _named(error: FleetError, name: str, namespace: str) -> FleetError:
+    """The placeholder rendering's problem, told of robot `name`."""
+    where = error.location
+    if where is not None and where.file is not None:
+        where = Location(_identify(str(where.file), name, namespace), where.line, where.column)
+    return type(error)(_identify(error.message, name, namespace), where)
 
 
 def _with_placeholders(context: dict[str, Any]) -> dict[str, Any]:

@@ -29,7 +29,7 @@ from typing import Any
 
 import jinja2
 from jinja2 import nodes
-from jinja2.sandbox import ImmutableSandboxedEnvironment
+from jinja2.sandbox import ImmutableSandboxedEnvironment, safe_range
 
 from fleet.errors import Location, TemplateError
 from fleet.expand.shared import SharedMark, SharedTopic, declare, merge
@@ -47,6 +47,10 @@ def builtin_template_dirs() -> list[Path]:
     folder, installed as package data; an editable install maps it onto the checkout's folder)."""
     # Installed wheels are unpacked, so the package's resources are files in a directory.
     return [Path(str(importlib.resources.files("fleet.templates")))]
+
+
+# Jinja's own globals by what they are, so a template printing one hears its name.
+_GLOBAL_NAMES = {id(value): name for name, value in {**jinja2.defaults.DEFAULT_NAMESPACE, "range": safe_range}.items()}
 
 
 def yaml_literal(value: Any) -> str:
@@ -68,6 +72,12 @@ def yaml_literal(value: Any) -> str:
         return json.dumps(value, ensure_ascii=True)
     if isinstance(value, (list, tuple, dict)):
         return json.dumps(value, ensure_ascii=True)
+    if callable(value):  # Jinja's globals (namespace, range, dict, ...), arg, share, a macro, a method
+        name = _GLOBAL_NAMES.get(id(value)) or getattr(value, "__name__", None) or getattr(value, "name", None)
+        raise TypeError(
+            f"'{name or type(value).__name__}' is a function, not a value: it cannot be printed into a launch "
+            "file (print data such as robot.name, or call it)"
+        )
     raise TypeError(f"cannot emit a value of type {type(value).__name__} into a launch file")
 
 

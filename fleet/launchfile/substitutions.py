@@ -6,6 +6,7 @@ whitespace, may be quoted, and may themselves hold substitutions.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -152,3 +153,44 @@ def written(text: Text) -> str:
         else:
             out.append("$(" + " ".join([part.kind, *(written(arg) for arg in part.args)]) + ")")
     return "".join(out)
+
+
+@functools.lru_cache(maxsize=4096)  # a fleet's robots pass the same arguments, mostly
+def split_command_line(parts: Text) -> tuple[Text, ...]:
+    """The arguments of `args`/`ros_args`/`cmd` text, each a Text, split as launch's
+    ExecuteProcess._parse_cmdline does: literal text on (shell-quoted) whitespace, a
+    substitution one piece glued to the text it touches.  Its quirks are kept: text of only
+    whitespace ends the argument being built even when there is none, so `args: '   '` passes one
+    empty argument, and so does `$(var a)  $(var b)`.  The one splitter of the embedded runner
+    and of the generated Python launch file.  Raises ValueError for unbalanced quotes."""
+    import shlex
+
+    arguments: list[Text] = []
+    current: list[str | Subst] = []
+
+    def end() -> None:
+        nonlocal current
+        arguments.append(tuple(current))
+        current = []
+
+    for part in parts:
+        if isinstance(part, Subst):
+            current.append(part)
+            continue
+        tokens = shlex.split(part)
+        if not tokens:
+            end()
+            continue
+        if part[0].isspace() and current:
+            end()
+        current.append(tokens[0])
+        if len(tokens) > 1:
+            end()
+            current.append(tokens[-1])
+        if len(tokens) > 2:
+            arguments.extend((token,) for token in tokens[1:-1])
+        if part[-1].isspace():
+            end()
+    if current:
+        arguments.append(tuple(current))
+    return tuple(arguments)

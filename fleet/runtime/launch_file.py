@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import re
-import shlex
 import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -27,11 +26,11 @@ import yaml
 from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
 from fleet.launchfile import description as d
 from fleet.launchfile import read_launch_file
-from fleet.launchfile.substitutions import Subst, Text, parse_substitutions
+from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, split_command_line
 from fleet.launchfile.substitutions import written as _written
 
 __all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
-from fleet.rules import ROS_TOKEN
+from fleet.rules import ROS_TOKEN, remap_problem
 from fleet.runtime import ament
 
 # ---------------------------------------------------------------------------------------------
@@ -131,6 +130,11 @@ class _Timer:
     file: Path
 
 
+# What render cannot know of the computer that will run the file (see _Interpreter.bundle).
+_UNKNOWN = "\x00unknown\x00"
+# A bundle's directory and the names of its files.
+Bundle = tuple[Path, frozenset[str]]
+
 _SUBSTITUTION_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -173,7 +177,18 @@ def _condition_value(value: str) -> bool | None:
 class _Interpreter:
     """Run the actions like launch does and draft the processes."""
 
-    def __init__(self, launch_args: Mapping[str, str], env: Mapping[str, str], search_path: str):
+    def __init__(
+        self,
+        launch_args: Mapping[str, str],
+        env: Mapping[str, str],
+        search_path: str,
+        bundle: Bundle | None = None,
+    ):
+        # With a bundle, the file is checked away from the computer that will run it (render):
+        # what only that computer can tell (packages, executables, environment, files outside the
+        # bundle, included files) is _UNKNOWN, and no check is made of what depends on it.
+        self.bundle = bundle
+        self.unknown_configurations = False  # a skipped include or branch may have set any
         self.base_env = env
         self.search_path = search_path
         self.launch_args = dict(launch_args)
@@ -201,6 +216,7 @@ class _Interpreter:
             timer = self.timers.pop(0)
             self.now = timer.due
             self.execute(timer.actions, scope, timer.file)
+        _check_unique_names(self.drafts)
         return self.drafts
 
     def include(self, description: d.LaunchDescription, scope: _Scope, top: bool = False) -> None:
@@ -223,6 +239,8 @@ class _Interpreter:
         kind = part.kind
         if kind == "var":
             if args[0] not in scope.configurations or not isinstance(scope.configurations[args[0]], str):
+                if self.unknown_configurations:
+                    return _UNKNOWN
                 raise LaunchFileError(f"launch configuration '{args[0]}' is not defined", where)
             return scope.configurations[args[0]]
         if kind == "env":
@@ -232,12 +250,16 @@ class _Interpreter:
                 return self.base_env[args[0]]
             if len(args) == 2:
                 return args[1]
+            if self.bundle is not None:
+                return _UNKNOWN
             raise LaunchFileError(f"environment variable '{args[0]}' is not set", where)
         if kind == "dirname":
             return str(file.parent)
         if kind == "filename":
             return str(file)
         if kind in ("find-pkg-share", "find-pkg-prefix", "exec-in-pkg"):
+            if self.bundle is not None:
+                return _UNKNOWN
             try:
                 if kind == "find-pkg-share":
                     return str(ament.find_package_share(args[0], self.search_path))
@@ -256,6 +278,8 @@ class _Interpreter:
         raise AssertionError(kind)  # the reader accepts only the kinds above
 
     def truth_of(self, value: str, where: Location, what: str) -> bool:
+        if _UNKNOWN in value:
+            return True  # see execute: the caller skips what an unknown condition guards
         result = _condition_value(value)
         if result is None:
             raise LaunchFileError(f"{what} must be true/false/1/0, got '{value}'", where)
@@ -270,7 +294,11 @@ class _Interpreter:
         for action in actions:
             if action.condition is not None:
                 keyword = action.condition.keyword
-                holds = self.truth(action.condition.text, scope, action.where, file, f"'{keyword}'")
+                value = self.resolve(action.condition.text, scope, action.where, file)
+                if _UNKNOWN in value:
+                    self.unknown_configurations = True  # whether it runs is not known here
+                    continue
+                holds = self.truth_of(value, action.where, f"'{keyword}'")
                 if holds != (keyword == "if"):
                     continue
             self.execute_one(action, scope, file, top)
@@ -298,7 +326,7 @@ class _Interpreter:
             previous = scope.configurations.get("ros_namespace")
             previous = previous if isinstance(previous, str) else None
             namespace = _absolute(_prefix_namespace(previous, pushed))
-            if namespace is None or not _valid_namespace(namespace):
+            if namespace is None or (_UNKNOWN not in namespace and not _valid_namespace(namespace)):
                 raise LaunchFileError(f"invalid namespace '{namespace}' (pushed '{pushed}')", where)
             scope.configurations["ros_namespace"] = namespace
         elif isinstance(action, d.Group):
@@ -315,6 +343,8 @@ class _Interpreter:
                 period = action.period
             else:
                 written_period = text(action.period)
+                if _UNKNOWN in written_period:
+                    written_period = "0"
                 try:
                     period = float(written_period)
                 except ValueError:
@@ -329,7 +359,8 @@ class _Interpreter:
             # The list is changed in place: see _Scope.copy.
             scope.configurations.setdefault("global_params", []).append((name, value))
         elif isinstance(action, d.SetRemap):
-            scope.configurations.setdefault("ros_remaps", []).append((text(action.source), text(action.target)))
+            remap = _checked_remap(text(action.source), text(action.target), where)
+            scope.configurations.setdefault("ros_remaps", []).append(remap)
         elif isinstance(action, d.Node):
             self.drafts.append(self.node(action, scope, file))
         elif isinstance(action, d.Executable):
@@ -351,7 +382,7 @@ class _Interpreter:
                 )
             scope.configurations[action.name] = self.resolve(action.default, scope, action.where, file)
         value = scope.configurations[action.name]
-        if action.choices is not None and value not in action.choices:
+        if action.choices is not None and value not in action.choices and _UNKNOWN not in value:
             raise LaunchFileError(
                 f"argument '{action.name}' is '{value}', not one of its choices ({', '.join(action.choices)})",
                 action.where,
@@ -361,7 +392,15 @@ class _Interpreter:
 
     def include_file(self, action: d.Include, scope: _Scope, file: Path) -> None:
         where = action.where
-        target = Path(self.resolve(action.file, scope, where, file))
+        written_target = self.resolve(action.file, scope, where, file)
+        if self.bundle is not None:
+            # The included file is not in the bundle: the agent's computer has it, or not.
+            self.bundle_file_check(written_target, where, "included launch file")
+            for name, value in action.arguments:
+                scope.configurations[self.resolve(name, scope, where, file)] = self.resolve(value, scope, where, file)
+            self.unknown_configurations = True
+            return
+        target = Path(written_target)
         if not target.is_absolute():
             target = Path.cwd() / target
         if target in self.including:
@@ -400,6 +439,8 @@ class _Interpreter:
     def process_common(self, action: d.Process, scope: _Scope, file: Path) -> dict[str, Any]:
         where = action.where
         output = "log" if action.output is None else self.resolve(action.output, scope, where, file)
+        if _UNKNOWN in output:
+            output = "log"
         if output not in ("screen", "log", "both"):
             raise LaunchFileError(f"'output' must be screen, log or both, got '{output}'", where)
         respawn = False if action.respawn is None else self.truth(action.respawn, scope, where, file, "'respawn'")
@@ -443,18 +484,21 @@ class _Interpreter:
         package = text(node.package)
         executable = text(node.executable)
         try:
-            executable_path = ament.find_executable(package, executable, self.search_path)
+            if self.bundle is not None:  # looked up on the agent's computer
+                executable_path = Path(executable)
+            else:
+                executable_path = ament.find_executable(package, executable, self.search_path)
         except FleetError as problem:
             raise LaunchFileError(problem.message, where) from None
         name = None if node.name is None else text(node.name)
-        if name is not None and not ROS_TOKEN.fullmatch(name):
+        if name is not None and _UNKNOWN not in name and not ROS_TOKEN.fullmatch(name):
             raise LaunchFileError(
                 f"invalid node name '{name}' (letters, digits and underscores, not starting with a digit)", where
             )
         own_namespace = None if node.namespace is None else text(node.namespace)
         base = scope.configurations.get("ros_namespace")
         namespace = _absolute(_prefix_namespace(base if isinstance(base, str) else None, own_namespace))
-        if namespace is not None and not _valid_namespace(namespace):
+        if namespace is not None and _UNKNOWN not in namespace and not _valid_namespace(namespace):
             raise LaunchFileError(f"invalid namespace '{namespace}' for node '{name}'", where)
         launch = NodeLaunch(
             name=name,
@@ -474,13 +518,15 @@ class _Interpreter:
         for param in node.params:
             if isinstance(param, d.ParamFile):
                 path = self.resolve(param.path, scope, param.where, file)
-                if not os.path.isfile(path):
+                if self.bundle is not None:
+                    self.bundle_file_check(path, param.where, "parameter file")
+                elif not os.path.isfile(path):
                     raise LaunchFileError(f"parameter file '{path}' not found", param.where)
                 params.append(("file", os.path.abspath(path)))
             else:
                 params.append(("inline", key, self.inline_param(param, scope, file)))
         remaps = list(scope.configurations.get("ros_remaps", []))
-        remaps += [(text(source), text(target)) for source, target in node.remaps]
+        remaps += [_checked_remap(text(source), text(target), where) for source, target in node.remaps]
         exec_name = None if node.exec_name is None else text(node.exec_name)
         self.sequence += 1
         return _NodeDraft(
@@ -493,6 +539,14 @@ class _Interpreter:
             order=self.sequence,
             process_base=exec_name or executable_path.name,
         )
+
+    def bundle_file_check(self, path: str, where: Location, what: str) -> None:
+        """A file the unit's own directory would have to hold must be in the bundle; any other
+        is the agent computer's to have."""
+        assert self.bundle is not None
+        directory, names = self.bundle
+        if _UNKNOWN not in path and Path(path).parent == directory and Path(path).name not in names:
+            raise LaunchFileError(f"{what} '{path}' not found", where)
 
     def inline_param(self, param: d.InlineParam, scope: _Scope, file: Path) -> dict[str, Any]:
         name = self.resolve(param.name, scope, param.where, file)
@@ -523,7 +577,7 @@ class _Interpreter:
         if not isinstance(value, tuple):
             return value  # a YAML scalar, already typed
         text = self.resolve(value, scope, where, file)
-        if not typed and all(isinstance(part, str) for part in value):
+        if (not typed and all(isinstance(part, str) for part in value)) or _UNKNOWN in text:
             return text
         if text == "":
             return ""
@@ -538,42 +592,36 @@ class _Interpreter:
         raise LaunchFileError(f"parameter '{name}': value '{text}' is not a bool, int, float, string or list", where)
 
     def command_line(self, parts: Text, scope: _Scope, where: Location, file: Path) -> list[str]:
-        """Split as launch's ExecuteProcess._parse_cmdline does: literal text on (shell-quoted)
-        whitespace, a substitution's value one piece glued to the text it touches.  Its quirks
-        are kept: text of only whitespace ends the argument being built even when there is none,
-        so `args: '   '` passes one empty argument, and so does `$(var a)  $(var b)`."""
-        arguments: list[list[str]] = []
-        current: list[str] = []
+        """The arguments as launch passes them (split_command_line), substitutions resolved."""
+        try:
+            arguments = split_command_line(parts)
+        except ValueError as problem:
+            raise LaunchFileError(f"cannot split '{_written(parts)}': {problem}", where) from None
+        return [self.resolve(argument, scope, where, file) for argument in arguments]
 
-        def end() -> None:
-            nonlocal current
-            arguments.append(current)
-            current = []
 
-        for part in parts:
-            if isinstance(part, Subst):
-                current.append(self.resolve_part(part, scope, where, file))
-                continue
-            try:
-                tokens = shlex.split(part)
-            except ValueError as problem:
-                raise LaunchFileError(f"cannot split '{part}': {problem}", where) from None
-            if not tokens:
-                end()
-                continue
-            if part[0].isspace() and current:
-                end()
-            current.append(tokens[0])
-            if len(tokens) > 1:
-                end()
-                current.append(tokens[-1])
-            if len(tokens) > 2:
-                arguments.extend([token] for token in tokens[1:-1])
-            if part[-1].isspace():
-                end()
-        if current:
-            arguments.append(current)
-        return ["".join(argument) for argument in arguments]
+def _checked_remap(source: str, target: str, where: Location) -> tuple[str, str]:
+    """The remap, if rcl can parse `-r source:=target` (else the node would not start)."""
+    if _UNKNOWN not in source + target and (problem := remap_problem(source, target)):
+        raise LaunchFileError(f"invalid remap {source!r} -> {target!r}: {problem}", where)
+    return source, target
+
+
+def _check_unique_names(drafts: list[_NodeDraft]) -> None:
+    """Two nodes of one full name are one name twice to ROS (each hides the other's topics,
+    services and parameters): refused at the second."""
+    seen: dict[str, Location | None] = {}
+    for draft in sorted(drafts, key=lambda draft: (draft.launch.delay, draft.order)):
+        fqn = draft.launch.fqn
+        if fqn is None or _UNKNOWN in fqn:
+            continue
+        if fqn in seen:
+            first = seen[fqn]
+            at = f" (the first at {first.line}:{first.column})" if first and first.line else ""
+            raise LaunchFileError(
+                f"two nodes are named {fqn}{at}: ROS needs each node's full name once", draft.launch.location
+            )
+        seen[fqn] = draft.launch.location
 
 
 def _equal(left: str, right: str) -> bool:
@@ -664,6 +712,15 @@ def _interpret(
     interpreter = _Interpreter(launch_args, environment, search_path)
     interpreter.run(description)
     return interpreter
+
+
+def check_bundle_launch(description: d.LaunchDescription, files: frozenset[str]) -> None:
+    """Run a unit's launch file (read from its bundle, before any agent has it) the way
+    check_launch_file would on an agent, less what only the agent's computer can tell: whether
+    packages, executables, environment variables, included files and files outside the bundle are
+    there.  Raises LaunchFileError, located in `description.path`."""
+    interpreter = _Interpreter({}, {}, "", bundle=(description.path.parent, files))
+    interpreter.run(description)
 
 
 def check_launch_file(

@@ -3,6 +3,7 @@ render refuses, in one line, what the runner would refuse."""
 
 from __future__ import annotations
 
+import json
 import textwrap
 from pathlib import Path
 
@@ -37,7 +38,7 @@ launch:
         children:
         - executable: {cmd: /bin/true, name: late}
 - include:
-    file: $(dirname)/extra.launch.yaml
+    file: $(env EXTRA_LAUNCH_DIR)/extra.launch.yaml
     arg: [{name: robot, value: {{ robot.name }}}]
 """
 
@@ -67,7 +68,9 @@ def test_a_template_using_the_tutorials_actions_renders_and_runs(tmp_path):
     prefix = FakePrefix(tmp_path / "prefix")
     prefix.add("talker", "#!/bin/sh\nexec sleep 100\n")
     launch = next(out / name for name in robot.files if name.endswith(".launch.yaml"))
-    ran = load_launch_file(launch, env=prefix.env(), params_dir=tmp_path / "params")
+    # A file outside the bundle (an agent's unit directory holds only the bundle's files).
+    env = {**prefix.env(), "EXTRA_LAUNCH_DIR": str(out)}
+    ran = load_launch_file(launch, env=env, params_dir=tmp_path / "params")
     assert [node.process_name for node in ran.nodes] == ["talker-1", "talker-2", "late-3"]
     assert ran.logs == ["r1"]
     python = next(text for name, text in robot.files.items() if name.endswith(".launch.py"))
@@ -109,3 +112,24 @@ def test_the_python_twin_expresses_every_substitution_the_reader_accepts():
     assert "condition=IfCondition([AndSubstitution([LaunchConfiguration('a')], [NotSubstitution(" in source
     for name in ("FindPackagePrefix", "ThisLaunchFile", "ExecutableInPackage", "EqualsSubstitution"):
         assert f"import {name}\n" in source
+
+
+@pytest.mark.parametrize(
+    "args",
+    ['--robot "t1" --x 0.0', "'a b' c'd'e  \"\"", "x$(var v) y", "$(var v)  $(var v)", "   ", '--name="t 1" -v'],
+)
+def test_the_python_twin_passes_the_arguments_the_runner_passes(tmp_path, args):
+    """One splitter: quotes in `args` mean the same to the runner and in the .launch.py."""
+    from fleet.expand.python_launch import python_launch_source
+
+    prefix = FakePrefix(tmp_path / "prefix")
+    prefix.add("talker", "#!/bin/sh\n")
+    launch = tmp_path / "r.launch.yaml"
+    node_yaml = f"- node:\n    pkg: demo\n    exec: talker\n    args: {json.dumps(args)}\n"
+    launch.write_text("launch:\n- let: {name: v, value: V}\n" + node_yaml)
+    (node,) = load_launch_file(launch, env=prefix.env()).nodes
+    ran = node.cmd[1 : node.cmd.index("--ros-args")]
+    source = python_launch_source({"launch": [{"node": {"pkg": "demo", "exec": "talker", "args": args}}]}, "c")
+    written = source.split("arguments=", 1)[1].split("\n", 1)[0].rstrip(",")
+    passed = eval(written, {"LaunchConfiguration": lambda name: "V"})  # the twin's substitutions, resolved
+    assert ["".join(argument) if isinstance(argument, list) else argument for argument in passed] == ran

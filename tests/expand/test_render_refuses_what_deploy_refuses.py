@@ -167,3 +167,54 @@ def test_more_bridge_routes_than_an_agent_carries_are_refused():
         expand_fleet(parse_spec(ZENOH + agents + robots, "f.yaml"))
     dds = (ZENOH + agents + robots).replace("transport: zenoh", "transport: dds")
     expand_fleet(parse_spec(dds, "f.yaml"))  # the same fleet bridges nothing with dds
+
+
+def _render_template(tmp_path, template: str, robots: str = "[{name: robot1}, {name: robot2}]"):
+    templates = tmp_path / "templates"
+    templates.mkdir(exist_ok=True)
+    (templates / "t.launch.yaml.j2").write_text(template)
+    spec = f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: t}}\nrobots: {robots}\n"
+    return expand_fleet(parse_spec(spec, str(tmp_path / "f.yaml")))
+
+
+NODE = "  - node: {{pkg: demo, exec: talker, name: {name}{extra}}}\n"
+GROUP = "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+
+
+@pytest.mark.parametrize(
+    ("nodes", "place", "problem"),
+    [
+        (NODE.format(name="shadow-ctl", extra=""), "4:5", "invalid node name 'shadow-ctl'"),
+        (NODE.format(name="c", extra=", args: --log $(var loglevel)"), "4:5", "'loglevel' is not defined"),
+        (NODE.format(name="main_ctl", extra="") * 2, "5:5", "two nodes are named /robot1/main_ctl"),
+        (
+            NODE.format(name="c", extra=", remap: [{from: odom, to: '/{{ robot.name }}/odom'}]"),
+            "4:5",
+            "invalid remap 'odom' -> '/\"robot1\"/odom'",
+        ),
+        (NODE.format(name="c", extra=", remap: [{from: cmd-vel, to: x}]"), "4:5", "from 'cmd-vel' is not a ROS name"),
+    ],
+)
+def test_render_refuses_what_the_agents_check_refuses(tmp_path, nodes, place, problem):
+    """The agents' own launch interpreter, run over each rendered launch file; the problem is
+    placed where `fleet render -o DIR` writes the file."""
+    from fleet.errors import FleetError
+
+    with pytest.raises(FleetError) as caught:
+        _render_template(tmp_path, GROUP + nodes)
+    line = caught.value.line()
+    assert f"robot1/robot1.launch.yaml:{place}: " in line and problem in line, line
+    assert "placeholder" not in line
+
+
+def test_render_leaves_to_the_agent_what_only_its_computer_can_tell(tmp_path):
+    """Packages, executables, environment variables and files outside the bundle are the agent's."""
+    template = GROUP + (
+        "  - node:\n      pkg: no_such_package\n      exec: no_such_exec\n      name: c\n"
+        "      args: --home $(env NO_SUCH_VARIABLE) --share $(find-pkg-share no_such_package)\n"
+        "      param: [{from: {{ params_file }}}, {from: $(find-pkg-share p)/x.yaml}, {from: /no/such.yaml}]\n"
+        "  - include: {file: /no/such.launch.yaml, arg: [{name: a, value: b}]}\n"
+        "  - node: {pkg: demo, exec: talker, name: d, args: $(var set_by_the_include)}\n"
+    )
+    expansion = _render_template(tmp_path, template)
+    assert [robot.name for robot in expansion.robots] == ["robot1", "robot2"]

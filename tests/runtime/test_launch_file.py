@@ -477,6 +477,26 @@ def test_undefined_var(load):
         ),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: a}]}\n", ["needs 'to'"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker, remap: x}\n", ["list of mappings"], 2),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, remap: [{from: odom, to: '/\"t1\"/odom'}]}\n",
+            ["invalid remap 'odom' -> '/\"t1\"/odom'", "to '/\"t1\"/odom' is not a ROS name"],
+            2,
+        ),
+        (
+            "launch:\n- let: {name: t, value: shadow cmd vel!}\n"
+            "- node: {pkg: demo, exec: talker, remap: [{from: cmd_vel, to: $(var t)}]}\n",
+            ["to 'shadow cmd vel!' is not a ROS name"],
+            3,
+        ),
+        ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: cmd-vel, to: x}]}\n", ["from 'cmd-vel'"], 2),
+        ("launch:\n- set_remap: {from: a, to: 2b}\n", ["to '2b' is not a ROS name"], 2),
+        ("launch:\n- node: {pkg: demo, exec: talker, remap: [{from: __ns, to: x}]}\n", ["absolute namespace"], 2),
+        (
+            "launch:\n- node: {pkg: demo, exec: talker, name: a, namespace: /r}\n"
+            "- group: [{push_ros_namespace: {namespace: r}}, {node: {pkg: demo, exec: listener, name: a}}]\n",
+            ["two nodes are named /r/a (the first at 2:3)"],
+            3,
+        ),
         ("launch:\n- group: {scoped: 3, children: []}\n", ["'scoped' of 'group' must be true or false"], 2),
         ("launch:\n- group: {scoped: false}\n", ["needs a list of actions"], 2),
         ("launch:\n- node: {pkg: demo, exec: talker}\n  other: 1\n", ["exactly one key"], 2),
@@ -524,3 +544,13 @@ def test_check_writes_nothing(demo, write_launch, tmp_path):
     before = set(tmp_path.rglob("*"))
     assert check_launch_file(path, env=demo.env()) == {}
     assert set(tmp_path.rglob("*")) == before
+
+
+def test_nodes_of_one_name_that_do_not_both_run_are_not_refused(load):
+    plan = load("""
+        launch:
+        - node: {pkg: demo, exec: talker, name: a, if: 'false'}
+        - node: {pkg: demo, exec: talker, name: a}
+        - node: {pkg: demo, exec: talker, name: a, namespace: other}
+    """)
+    assert [node.fqn for node in plan.nodes] == ["/a", "/other/a"]

@@ -200,6 +200,26 @@ def test_template_undefined_variable_names_template_line(tmp_path, capsys):
     assert "nickname" in line
 
 
+@pytest.mark.parametrize(
+    ("printed", "name"),
+    [("namespace", "namespace"), ("range", "range"), ("dict", "dict"), ("cycler", "cycler"), ("arg", "arg")],
+)
+def test_template_printing_a_function_names_it(tmp_path, capsys, printed, name):
+    """Jinja's globals and fleet's own functions are not data: printing one says which."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        f"  - node: {{pkg: a, exec: b, name: {{{{ {printed} }}}}}}\n",
+    )
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert f"{templates / 'custom.launch.yaml.j2'}:4:" in line
+    assert f"'{name}' is a function, not a value" in line
+
+
 def test_missing_spec_file(tmp_path, capsys):
     code, _, stderr = run_cli(["render", str(tmp_path / "nope.yaml")], capsys)
     assert code == 2 and "no such fleet spec file" in stderr and str(tmp_path / "nope.yaml") in stderr
