@@ -77,3 +77,10 @@ def certs(
         f"  operator: fleet status --connect tls/ROUTER:7447 --zenoh-config {out}/operator-{operator[0]}.json5\n"
         "Keep ca.key off the robots: it signs new members."
     )
+    router_cert = c.cert_path(out, security.ROUTER)
+    if c.loopback_only(c.read_certificate(router_cert)):
+        console().print(
+            f"note: {router_cert} names only this computer (127.0.0.1, localhost): agents on other "
+            "computers cannot verify the router. For them, give --router-address with the address "
+            "they dial, into a new --out directory (an existing certificate is kept)."
+        )

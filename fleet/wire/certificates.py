@@ -178,6 +178,18 @@ def common_name(cert: x509.Certificate) -> str:
     return str(values[0].value) if values else "?"
 
 
+def loopback_only(cert: x509.Certificate) -> bool:
+    """The certificate names only this computer (127.0.0.1, ::1, localhost): a router holding it
+    cannot be verified by agents on other computers, which dial it by another address."""
+    try:
+        names = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    except x509.ExtensionNotFound:
+        return False
+    ips = names.get_values_for_type(x509.IPAddress)
+    hosts = names.get_values_for_type(x509.DNSName)
+    return bool(ips or hosts) and all(ip.is_loopback for ip in ips) and all(host == "localhost" for host in hosts)
+
+
 def check_certificate(path: Path, authority: Path | None) -> None:
     """Refuse (FleetError, naming the file) a certificate that is unreadable, not valid now, or
     not signed by `authority` (the CA certificate the same Zenoh config trusts)."""

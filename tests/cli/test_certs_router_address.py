@@ -1,0 +1,29 @@
+"""`fleet certs` says when the router's certificate names only this computer: agents elsewhere,
+which dial the router by another address, could not verify it and would not connect."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from tests.checkout import FLEETS
+
+NOTE = "names only this computer (127.0.0.1, localhost)"
+
+
+def certs(out, *args: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-m", "fleet", "certs", str(FLEETS / "two_robots.yaml"), "--out", str(out), *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    return " ".join(done.stdout.split())
+
+
+def test_a_router_certificate_for_this_computer_only_is_pointed_out(tmp_path):
+    assert NOTE in certs(tmp_path / "local")
+    assert NOTE not in certs(tmp_path / "lan", "--router-address", "10.0.0.1")
+    # A certificate kept from before is what counts, not this call's --router-address.
+    assert NOTE in certs(tmp_path / "local", "--router-address", "10.0.0.1")
