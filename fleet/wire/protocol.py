@@ -173,6 +173,12 @@ def agent_key_exprs(agent: str) -> list[str]:
     ]
 
 
+def agent_asks_key_exprs() -> list[str]:
+    """Keys any agent may query besides its own: every agent's status, where an agent learns the
+    address of its fleet's discovery host (fleet.server.agent, _find_discovery_hosts)."""
+    return [agent_status_key("*", "*")]
+
+
 def fleet_of_key(key: str) -> str | None:
     """The fleet chunk of a `fleet/<fleet>/...` key, or None when it is a wildcard."""
     parts = str(key).split("/")

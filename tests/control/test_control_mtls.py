@@ -9,6 +9,7 @@ from __future__ import annotations
 import datetime
 import json
 import shutil
+import time
 
 import psutil
 import pytest
@@ -155,3 +156,27 @@ def test_refused_session_is_a_control_error(fresh_cluster, tmp_path):
     process = cluster.processes["agent-hostA"]
     assert process.wait(timeout=30) == 2
     assert "hostA.pem" in cluster.log("agent-hostA") and "fleet 'elsewhere'" in cluster.log("agent-hostA")
+
+
+def test_deploy_before_agents_gives_every_agent_the_discovery_host_under_tls(fresh_cluster, tmp_path):
+    """A deploy made while no agent is online names only the discovery host (hostA); hostB, up
+    first, asks hostA's status for its address once hostA is up: the access rules must let it."""
+    cluster = fresh_cluster
+    spec = cluster.spec()
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(spec), "--out", str(certs)).returncode == 0
+    cluster.scheme = "tls"
+    cluster.start_router(zenoh_config=certs / "router.json5")
+    operator = certs / "operator-operator.json5"
+    deployed = fleet_cli(cluster, "deploy", str(spec), "--timeout", "2", config=operator)
+    assert "hostA" in deployed.stdout + deployed.stderr, deployed.stdout + deployed.stderr  # unreachable, kept
+    cluster.start_agent("hostB", certs / "agent-hostB.json5")
+    time.sleep(2)  # hostB fetches its desired state and asks for hostA's address before hostA is up
+    cluster.start_agent("hostA", certs / "agent-hostA.json5")
+
+    poll(
+        lambda: "its discovery server runs on agent hostA" in cluster.log("agent-hostB"),
+        timeout=30,
+        what="hostB to learn hostA's discovery server",
+        explain=lambda: cluster.log("agent-hostB"),
+    )
