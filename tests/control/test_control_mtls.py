@@ -180,3 +180,21 @@ def test_deploy_before_agents_gives_every_agent_the_discovery_host_under_tls(fre
         what="hostB to learn hostA's discovery server",
         explain=lambda: cluster.log("agent-hostB"),
     )
+
+
+def test_an_agent_that_cannot_reach_the_router_says_so(fresh_cluster, tmp_path):
+    """An agent keeps retrying, but says at once why it cannot connect (not on every retry)."""
+    cluster = fresh_cluster  # no router: nothing listens on its port
+    cluster.start_agent("hostA")
+    said = f"cannot reach the fleet router at {cluster.endpoint}: "
+    poll(
+        lambda: said in cluster.log("agent-hostA"),
+        timeout=10,
+        what="the agent to say it cannot reach the router",
+        explain=lambda: cluster.log("agent-hostA"),
+    )
+    time.sleep(3)  # retries meanwhile, every 2 s at most, with the same reason: not said again
+    assert cluster.log("agent-hostA").count(said) == 1, cluster.log("agent-hostA")
+    assert "retrying every 2 s" in cluster.log("agent-hostA")
+    assert cluster.processes["agent-hostA"].poll() is None  # still trying
+    cluster.stop_process("agent-hostA")
