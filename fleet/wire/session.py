@@ -119,6 +119,24 @@ def _check_tls_files(config) -> None:
             check_key(Path(tls[f"{role}_private_key"]))
 
 
+def check_identity(name: str, user_config: Path | None) -> None:
+    """Refuse (FleetError) an agent `name` that is not the common name of the client certificate
+    its Zenoh config names: the router's access rules know an agent by that name only, and would
+    deny it every key of its own."""
+    from fleet.wire.certificates import common_name, read_certificate
+
+    if user_config is None:
+        return
+    path = json.loads(_base_config(user_config).get_json("transport/link/tls/connect_certificate"))
+    if not path:
+        return
+    identity = common_name(read_certificate(Path(path)))
+    if identity != name:
+        raise FleetError(
+            f"agent name {name!r} is not the name in its certificate {path} ({identity!r})", Location("--name")
+        )
+
+
 def _set_unless_user_set(config, key: str, value) -> None:
     """Insert our value where the user's file left the built-in default."""
     import zenoh

@@ -198,3 +198,17 @@ def test_an_agent_that_cannot_reach_the_router_says_so(fresh_cluster, tmp_path):
     assert "retrying every 2 s" in cluster.log("agent-hostA")
     assert cluster.processes["agent-hostA"].poll() is None  # still trying
     cluster.stop_process("agent-hostA")
+
+
+def test_an_agent_named_otherwise_than_its_certificate_is_refused(fresh_cluster, tmp_path):
+    cluster = fresh_cluster
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(cluster.spec()), "--out", str(certs)).returncode == 0
+    cluster.scheme = "tls"
+    cluster.start_router(zenoh_config=certs / "router.json5")
+    cluster.start_agent("hostB", certs / "agent-hostA.json5")
+    process = cluster.processes["agent-hostB"]
+    assert process.wait(timeout=30) == 2
+    lines = cluster.log("agent-hostB").strip().splitlines()
+    said = f"--name: agent name 'hostB' is not the name in its certificate {certs / 'hostA.pem'} ('hostA')"
+    assert len(lines) == 1 and lines[0].endswith(said), lines
