@@ -119,6 +119,11 @@ def status_query(fleet: str | None = None) -> str:
     return f"fleet/{fleet or '*'}/status/**"
 
 
+# A fleet name no fleet has (names never start with "."): the router answers a registry query for
+# any fleet name, so asking this one tells whether the router answers this client at all.
+NO_FLEET = ".none"
+
+
 def plan_key(fleet: str) -> str:
     return f"fleet/{fleet}/plan"
 

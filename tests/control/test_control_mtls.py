@@ -168,6 +168,11 @@ def test_deploy_before_agents_gives_every_agent_the_discovery_host_under_tls(fre
     cluster.scheme = "tls"
     cluster.start_router(zenoh_config=certs / "router.json5")
     operator = certs / "operator-operator.json5"
+    poll(  # the router listens, but its registry is declared just after
+        lambda: fleet_cli(cluster, "status", config=operator).returncode == 0,
+        timeout=20,
+        what="the router to answer status",
+    )
     deployed = fleet_cli(cluster, "deploy", str(spec), "--timeout", "2", config=operator)
     assert "hostA" in deployed.stdout + deployed.stderr, deployed.stdout + deployed.stderr  # unreachable, kept
     cluster.start_agent("hostB", certs / "agent-hostB.json5")
@@ -212,3 +217,28 @@ def test_an_agent_named_otherwise_than_its_certificate_is_refused(fresh_cluster,
     lines = cluster.log("agent-hostB").strip().splitlines()
     said = f"--name: agent name 'hostB' is not the name in its certificate {certs / 'hostA.pem'} ('hostA')"
     assert len(lines) == 1 and lines[0].endswith(said), lines
+
+
+def test_the_cli_with_an_agent_s_certificate_stops_before_sending_anything(secured):
+    cluster, spec, certs = secured
+    operator, agent = certs / "operator-operator.json5", certs / "agent-hostA.json5"
+    # A router that holds no fleet yet answers, and so status works.
+    poll(
+        lambda: fleet_cli(cluster, "status", config=operator).returncode == 0,
+        timeout=20,
+        what="status with the operator's certificate",
+    )
+    said = (
+        "the fleet router did not answer the status query (access denied? the Zenoh config in use may be an "
+        f"agent's, not an operator's: {agent})"
+    )
+    for args in (("status",), ("status", "--fleet", "tiny"), ("deploy", str(spec))):
+        refused = fleet_cli(cluster, *args, config=agent)
+        assert refused.returncode == 1, (args, refused.stdout, refused.stderr)
+        assert refused.stderr.strip().splitlines() == [f"fleet: error: {said}"], (args, refused.stderr)
+    # Nothing was sent: no plan at the router, no desired state, no robot on hostA.
+    with cluster.client(operator) as client:
+        _, registries = client.status("tiny")
+        assert all(registry.plan is None for registry in registries)
+        assert client.desired_states("tiny") == []
+    assert "fleet tiny" not in cluster.log("agent-hostA"), cluster.log("agent-hostA")
