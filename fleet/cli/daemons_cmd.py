@@ -59,16 +59,18 @@ def agent(
     from fleet.runtime.processes import stop_on_signals
     from fleet.server.agent import Agent
     from fleet.wire.protocol import address_problem
-    from fleet.wire.session import config_file, default_endpoint
+    from fleet.wire.session import check_identity, config_file, default_endpoint
 
     if problem := rules.key_name_problem(name):
         raise FleetError(f"agent name {problem}", Location("--name"))
     if address is not None and (problem := address_problem(address)):
         raise FleetError(problem, Location("--address"))
+    config = config_file(zenoh_config)
+    check_identity(name, config)
     _logging()
     directory = state_dir or rules.agent_dir(rules.state_dir(), name)
     try:
-        daemon = Agent(name, [connect or default_endpoint()], directory, config_file(zenoh_config), address)
+        daemon = Agent(name, [connect or default_endpoint()], directory, config, address)
     except ValueError as error:
         raise FleetError(str(error)) from None
     daemon.stop_event = stop_on_signals()

@@ -26,6 +26,7 @@ def connect(endpoint: str | None = None, zenoh_config: Path | None = None) -> Co
 class ControlClient:
     def __init__(self, connect: list[str], zenoh_config: Path | None = None):
         self.connect = connect
+        self.zenoh_config = zenoh_config
         self.session = open_client(connect, zenoh_config)
 
     def close(self) -> None:
@@ -42,10 +43,23 @@ class ControlClient:
     def status(
         self, fleet: str | None = None, timeout: float = STATUS_TIMEOUT
     ) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
-        """One wildcard get: a reply from every agent (per fleet it serves) and from the registry."""
+        """One wildcard get: a reply from every agent (per fleet it serves) and from the registry.
+        ControlError when the router's registry does not answer: its access rules deny this client
+        (an agent's certificate, say), and what agents answered would be a partial picture."""
+        statuses, registries = self._status_replies(p.status_query(fleet), timeout)
+        # A router that holds no fleet answers the wildcard with nothing, but any fleet by name.
+        if not registries and (fleet is not None or not self._status_replies(p.registry_key(p.NO_FLEET), timeout)[1]):
+            config = f": {self.zenoh_config}" if self.zenoh_config else ""
+            raise ControlError(
+                "the fleet router did not answer the status query (access denied? the Zenoh config in use "
+                f"may be an agent's, not an operator's{config})"
+            )
+        return statuses, registries
+
+    def _status_replies(self, key: str, timeout: float) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
         statuses: list[p.StatusReply] = []
         registries: list[p.RegistryReply] = []
-        for answer in self._every_answer(p.status_query(fleet), timeout):
+        for answer in self._every_answer(key, timeout):
             try:
                 data = p.parse(answer)
                 if data.get("kind") == "status":

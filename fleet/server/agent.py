@@ -60,6 +60,9 @@ DESIRED_TIMEOUT = 5.0
 # to and from this session went unanswered, timing out or ending at once with no reply, as in
 # eclipse-zenoh/zenoh#2767), so it is replaced by a new one.
 STALLED_FETCHES = 2
+# After this long without an answer from a fleet's discovery host (absent, or its status denied to
+# this agent by the router's access rules), say so; then again every as long.
+UNANSWERED_HOST_WARNING = 30.0
 
 
 class Agent:
@@ -102,6 +105,8 @@ class Agent:
         # Fleets whose discovery host has told this run of the agent its address (the address
         # itself is kept in the fleet's state, see _discovery_server): (fleet, host)
         self._confirmed_hosts: set[tuple[str, str]] = set()
+        # (fleet, host) -> (monotonic time of the first unanswered ask, of the last warning)
+        self._unanswered_hosts: dict[tuple[str, str], tuple[float, float]] = {}
         # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
         self._services: dict[tuple[str, str], Any] = {}
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
@@ -550,12 +555,16 @@ class Agent:
                 and not request.discovery_server
                 and (fleet, request.discovery_host) not in self._confirmed_hosts
             }
+        for key in set(self._unanswered_hosts) - waiting:
+            del self._unanswered_hosts[key]
         for fleet, host in sorted(waiting):
             try:
                 replies = list(session.get(p.agent_status_key(fleet, host), timeout=DESIRED_TIMEOUT))
             except Exception as error:  # no router right now: the next round asks again
                 log.debug("cannot ask agent %s for its address: %s", host, error)
                 continue
+            if not any(reply.ok is not None for reply in replies):
+                self._warn_unanswered(fleet, host)
             for reply in replies:
                 if reply.ok is None:
                     continue
@@ -579,6 +588,22 @@ class Agent:
                 log.info("fleet %s: its discovery server runs on agent %s at %s", fleet, host, address)
                 self._work.put(fleet)
                 break
+
+    def _warn_unanswered(self, fleet: str, host: str) -> None:
+        """Warn when the discovery host has not answered for UNANSWERED_HOST_WARNING seconds."""
+        now = time.monotonic()
+        first, warned = self._unanswered_hosts.setdefault((fleet, host), (now, now))
+        if now - warned < UNANSWERED_HOST_WARNING:
+            return
+        self._unanswered_hosts[(fleet, host)] = (first, now)
+        log.warning(
+            "fleet %s: agent %s, its discovery host, has not answered for %.0f s (is it running? or do the "
+            "router's access rules deny this agent its status?): robots here run without the fleet's "
+            "discovery server until it does",
+            fleet,
+            host,
+            now - first,
+        )
 
     def _service(self, fleet: str, kind: str, key: str, state: FleetState):
         from fleet.dataplane.discovery import discovery_server

@@ -119,6 +119,11 @@ def status_query(fleet: str | None = None) -> str:
     return f"fleet/{fleet or '*'}/status/**"
 
 
+# A fleet name no fleet has (names never start with "."): the router answers a registry query for
+# any fleet name, so asking this one tells whether the router answers this client at all.
+NO_FLEET = ".none"
+
+
 def plan_key(fleet: str) -> str:
     return f"fleet/{fleet}/plan"
 
@@ -171,6 +176,12 @@ def agent_key_exprs(agent: str) -> list[str]:
         desired_key("*", agent),
         data_key("*", "**"),
     ]
+
+
+def agent_asks_key_exprs() -> list[str]:
+    """Keys any agent may query besides its own: every agent's status, where an agent learns the
+    address of its fleet's discovery host (fleet.server.agent, _find_discovery_hosts)."""
+    return [agent_status_key("*", "*")]
 
 
 def fleet_of_key(key: str) -> str | None:

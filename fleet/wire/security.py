@@ -3,7 +3,7 @@
 `fleet certs` writes, beside the fleet's certificates (fleet.wire.certificates):
 - router.json5: listens with TLS, demands a client certificate from the fleet's authority, and
   lets each agent's certificate (matched by its common name) reach only that agent's keys
-  (protocol.agent_key_exprs) while operators' certificates reach every key of the fleet;
+  (protocol.agent_key_exprs) and query other agents' status, while operators' certificates reach every key of the fleet;
 - agent-<name>.json5 and operator-<name>.json5: connect with that member's certificate.
 Everything not allowed is denied.  The files are plain Zenoh configs: give them to
 `--zenoh-config` (or FLEET_ZENOH_CONFIG); endpoints then use the `tls/` scheme.
@@ -45,7 +45,10 @@ def access_rules(agents: list[str], operators: list[str]) -> dict:
     """Zenoh's access_control section, default deny.  An agent may send (ingress at the router)
     only on its own keys; what it may receive (egress) is any fleet key, because a query such as
     `fleet/*/status/**` is only allowed by a rule whose keys include it, and what reaches an agent
-    is anyway only what matches the subscribers and queryables it was allowed to declare."""
+    is anyway only what matches the subscribers and queryables it was allowed to declare.
+    Beyond its own keys, an agent may only query other agents' status (protocol.agent_asks_key_exprs):
+    a deploy made while no agent was online names only the discovery host, and the others ask it
+    for its address there; they may neither answer for it nor declare anything on its keys."""
     fleet_keys = ["fleet/**"]
     rules = [
         {
@@ -62,6 +65,13 @@ def access_rules(agents: list[str], operators: list[str]) -> dict:
             "permission": "allow",
             "key_exprs": fleet_keys,
         },
+        {
+            "id": "agents-ask",
+            "messages": ["query"],
+            "flows": ["ingress"],
+            "permission": "allow",
+            "key_exprs": p.agent_asks_key_exprs(),
+        },
     ]
     subjects: list[dict] = [{"id": "operators", "cert_common_names": operators}] if operators else []
     policies: list[dict] = [{"id": "operators", "rules": ["operators"], "subjects": ["operators"]}] if operators else []
@@ -77,7 +87,7 @@ def access_rules(agents: list[str], operators: list[str]) -> dict:
             }
         )
         subjects.append({"id": rule, "cert_common_names": [agent]})
-        policies.append({"id": rule, "rules": [rule, "agents-receive"], "subjects": [rule]})
+        policies.append({"id": rule, "rules": [rule, "agents-receive", "agents-ask"], "subjects": [rule]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 

@@ -13,8 +13,10 @@ from __future__ import annotations
 import contextlib
 import ipaddress
 import json
+import logging
 import os
 import re
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -31,6 +33,10 @@ ENDPOINT_VARIABLE = "FLEET_CONNECT"
 CONFIG_VARIABLE = "FLEET_ZENOH_CONFIG"
 AGENT_LEASE_MS = 2000  # link lease of agents: a frozen agent is dropped after 2 s (default 10 s)
 ROUTER_LEASE_MS = 2000
+RETRY_MAX_DELAY = 2.0  # daemons retry opening their session at least this often
+RETRY_LOG_PERIOD = 30.0  # and say again that they cannot, this often (at once when the reason changes)
+
+log = logging.getLogger("fleet.session")
 
 
 # Zenoh's endpoint form: PROTOCOL/ADDRESS[?METADATA][#CONFIG]; the IP protocols' address is HOST:PORT.
@@ -111,6 +117,24 @@ def _check_tls_files(config) -> None:
             check_certificate(Path(tls[f"{role}_certificate"]), authority)
         if tls.get(f"{role}_private_key"):
             check_key(Path(tls[f"{role}_private_key"]))
+
+
+def check_identity(name: str, user_config: Path | None) -> None:
+    """Refuse (FleetError) an agent `name` that is not the common name of the client certificate
+    its Zenoh config names: the router's access rules know an agent by that name only, and would
+    deny it every key of its own."""
+    from fleet.wire.certificates import common_name, read_certificate
+
+    if user_config is None:
+        return
+    path = json.loads(_base_config(user_config).get_json("transport/link/tls/connect_certificate"))
+    if not path:
+        return
+    identity = common_name(read_certificate(Path(path)))
+    if identity != name:
+        raise FleetError(
+            f"agent name {name!r} is not the name in its certificate {path} ({identity!r})", Location("--name")
+        )
 
 
 def _set_unless_user_set(config, key: str, value) -> None:
@@ -231,14 +255,24 @@ def open_client_retrying(
     settings: dict | None = None,
     runtime: str | None = None,
 ) -> zenoh.Session | None:
-    """For daemons: retry until the router answers (or `stop` is set, then None)."""
+    """For daemons: retry until the router answers (or `stop` is set, then None).  The first
+    failure is logged at once, then again when its reason changes or every RETRY_LOG_PERIOD s."""
     delay = 0.2
+    said, said_at = "", 0.0
     while not stop.is_set():
         try:
-            return open_client(connect, user_config, lease_ms, settings, runtime)
-        except ControlError:
+            session = open_client(connect, user_config, lease_ms, settings, runtime)
+        except ControlError as error:
+            reason = str(error)
+            if reason != said or time.monotonic() - said_at >= RETRY_LOG_PERIOD:
+                log.warning("%s; retrying every %.0f s", reason, RETRY_MAX_DELAY)
+                said, said_at = reason, time.monotonic()
             stop.wait(delay)
-            delay = min(delay * 2, 2.0)
+            delay = min(delay * 2, RETRY_MAX_DELAY)
+        else:
+            if said:
+                log.info("reached the fleet router at %s", ", ".join(connect))
+            return session
     return None
 
 

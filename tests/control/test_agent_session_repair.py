@@ -130,3 +130,27 @@ def test_a_session_that_is_answered_or_has_no_router_is_kept(serving):
     start(alone)
     poll(lambda: min(answered.queries, alone.queries), until=lambda n: n >= 5, timeout=10, what="five rounds each")
     assert opened == [] and not answered.closed and not alone.closed
+
+
+def test_an_agent_says_when_its_fleet_s_discovery_host_stays_unanswered(tmp_path, monkeypatch, caplog):
+    """A deploy named only the discovery host (hostA): while hostA's status gets no answer (hostA
+    away, or the router's access rules deny it), the agent warns, not on every ask."""
+    from fleet.server.state import FleetState
+
+    monkeypatch.setattr(agent_module, "UNANSWERED_HOST_WARNING", 0.2)
+    agent = agent_module.Agent("rack_a", ["tcp/127.0.0.1:0"], tmp_path / "state", address="127.0.0.1")
+    bundle = p.BundleMessage(name="robot1", kind="robot", entry="launch.py", files={"launch.py": ""}, digest="0" * 16)
+    request = p.ApplyRequest(fleet="tiny", agent="rack_a", generation=1, domain_id=1, bundles=[bundle])
+    agent._fleets["tiny"] = FleetState(request=request.model_copy(update={"discovery_host": "hostA"}))
+    silent = FakeSession(answers=False)
+    with caplog.at_level("WARNING", logger="fleet.agent"):
+        agent._find_discovery_hosts(silent)
+        assert not caplog.records  # at first: it may just not be up yet
+        threading.Event().wait(0.3)
+        agent._find_discovery_hosts(silent)
+        agent._find_discovery_hosts(silent)
+    assert silent.queries == 3
+    assert [r.getMessage() for r in caplog.records] == [
+        "fleet tiny: agent hostA, its discovery host, has not answered for 0 s (is it running? or do the router's "
+        "access rules deny this agent its status?): robots here run without the fleet's discovery server until it does"
+    ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import datetime
 import json
 import shutil
+import time
 
 import psutil
 import pytest
@@ -155,3 +156,89 @@ def test_refused_session_is_a_control_error(fresh_cluster, tmp_path):
     process = cluster.processes["agent-hostA"]
     assert process.wait(timeout=30) == 2
     assert "hostA.pem" in cluster.log("agent-hostA") and "fleet 'elsewhere'" in cluster.log("agent-hostA")
+
+
+def test_deploy_before_agents_gives_every_agent_the_discovery_host_under_tls(fresh_cluster, tmp_path):
+    """A deploy made while no agent is online names only the discovery host (hostA); hostB, up
+    first, asks hostA's status for its address once hostA is up: the access rules must let it."""
+    cluster = fresh_cluster
+    spec = cluster.spec()
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(spec), "--out", str(certs)).returncode == 0
+    cluster.scheme = "tls"
+    cluster.start_router(zenoh_config=certs / "router.json5")
+    operator = certs / "operator-operator.json5"
+    poll(  # the router listens, but its registry is declared just after
+        lambda: fleet_cli(cluster, "status", config=operator).returncode == 0,
+        timeout=20,
+        what="the router to answer status",
+    )
+    deployed = fleet_cli(cluster, "deploy", str(spec), "--timeout", "2", config=operator)
+    assert "hostA" in deployed.stdout + deployed.stderr, deployed.stdout + deployed.stderr  # unreachable, kept
+    cluster.start_agent("hostB", certs / "agent-hostB.json5")
+    time.sleep(2)  # hostB fetches its desired state and asks for hostA's address before hostA is up
+    cluster.start_agent("hostA", certs / "agent-hostA.json5")
+
+    poll(
+        lambda: "its discovery server runs on agent hostA" in cluster.log("agent-hostB"),
+        timeout=30,
+        what="hostB to learn hostA's discovery server",
+        explain=lambda: cluster.log("agent-hostB"),
+    )
+
+
+def test_an_agent_that_cannot_reach_the_router_says_so(fresh_cluster, tmp_path):
+    """An agent keeps retrying, but says at once why it cannot connect (not on every retry)."""
+    cluster = fresh_cluster  # no router: nothing listens on its port
+    cluster.start_agent("hostA")
+    said = f"cannot reach the fleet router at {cluster.endpoint}: "
+    poll(
+        lambda: said in cluster.log("agent-hostA"),
+        timeout=10,
+        what="the agent to say it cannot reach the router",
+        explain=lambda: cluster.log("agent-hostA"),
+    )
+    time.sleep(3)  # retries meanwhile, every 2 s at most, with the same reason: not said again
+    assert cluster.log("agent-hostA").count(said) == 1, cluster.log("agent-hostA")
+    assert "retrying every 2 s" in cluster.log("agent-hostA")
+    assert cluster.processes["agent-hostA"].poll() is None  # still trying
+    cluster.stop_process("agent-hostA")
+
+
+def test_an_agent_named_otherwise_than_its_certificate_is_refused(fresh_cluster, tmp_path):
+    cluster = fresh_cluster
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(cluster.spec()), "--out", str(certs)).returncode == 0
+    cluster.scheme = "tls"
+    cluster.start_router(zenoh_config=certs / "router.json5")
+    cluster.start_agent("hostB", certs / "agent-hostA.json5")
+    process = cluster.processes["agent-hostB"]
+    assert process.wait(timeout=30) == 2
+    lines = cluster.log("agent-hostB").strip().splitlines()
+    said = f"--name: agent name 'hostB' is not the name in its certificate {certs / 'hostA.pem'} ('hostA')"
+    assert len(lines) == 1 and lines[0].endswith(said), lines
+
+
+def test_the_cli_with_an_agent_s_certificate_stops_before_sending_anything(secured):
+    cluster, spec, certs = secured
+    operator, agent = certs / "operator-operator.json5", certs / "agent-hostA.json5"
+    # A router that holds no fleet yet answers, and so status works.
+    poll(
+        lambda: fleet_cli(cluster, "status", config=operator).returncode == 0,
+        timeout=20,
+        what="status with the operator's certificate",
+    )
+    said = (
+        "the fleet router did not answer the status query (access denied? the Zenoh config in use may be an "
+        f"agent's, not an operator's: {agent})"
+    )
+    for args in (("status",), ("status", "--fleet", "tiny"), ("deploy", str(spec))):
+        refused = fleet_cli(cluster, *args, config=agent)
+        assert refused.returncode == 1, (args, refused.stdout, refused.stderr)
+        assert refused.stderr.strip().splitlines() == [f"fleet: error: {said}"], (args, refused.stderr)
+    # Nothing was sent: no plan at the router, no desired state, no robot on hostA.
+    with cluster.client(operator) as client:
+        _, registries = client.status("tiny")
+        assert all(registry.plan is None for registry in registries)
+        assert client.desired_states("tiny") == []
+    assert "fleet tiny" not in cluster.log("agent-hostA"), cluster.log("agent-hostA")
