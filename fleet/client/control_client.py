@@ -51,8 +51,8 @@ class ControlClient:
         if not registries and (fleet is not None or not self._status_replies(p.registry_key(p.NO_FLEET), timeout)[1]):
             config = f": {self.zenoh_config}" if self.zenoh_config else ""
             raise ControlError(
-                "the fleet router did not answer the status query (access denied? the Zenoh config in use "
-                f"may be an agent's, not an operator's{config})"
+                "the fleet router did not answer the status query (still starting? or access denied: the Zenoh "
+                f"config in use may be an agent's, not an operator's{config})"
             )
         return statuses, registries
 

@@ -229,8 +229,8 @@ def test_the_cli_with_an_agent_s_certificate_stops_before_sending_anything(secur
         what="status with the operator's certificate",
     )
     said = (
-        "the fleet router did not answer the status query (access denied? the Zenoh config in use may be an "
-        f"agent's, not an operator's: {agent})"
+        "the fleet router did not answer the status query (still starting? or access denied: the Zenoh config "
+        f"in use may be an agent's, not an operator's: {agent})"
     )
     for args in (("status",), ("status", "--fleet", "tiny"), ("deploy", str(spec))):
         refused = fleet_cli(cluster, *args, config=agent)
