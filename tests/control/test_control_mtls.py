@@ -39,6 +39,15 @@ def secured(fresh_cluster, tmp_path):
     return cluster, spec, certs
 
 
+def tls_router(cluster, spec, tmp_path):
+    """`fleet certs` for the spec in tmp_path/certs, and the router running with them (no agent)."""
+    certs = tmp_path / "certs"
+    assert cluster.cli("certs", str(spec), "--out", str(certs)).returncode == 0
+    cluster.scheme = "tls"
+    cluster.start_router(zenoh_config=certs / "router.json5")
+    return certs
+
+
 def fleet_cli(cluster, *args, config=None):
     return cluster.cli(*args, "--connect", cluster.endpoint, *(["--zenoh-config", str(config)] if config else []))
 
@@ -139,10 +148,7 @@ def test_certs_command_refuses_bad_input(fresh_cluster, tmp_path):
 
 def test_refused_session_is_a_control_error(fresh_cluster, tmp_path):
     cluster = fresh_cluster
-    certs = tmp_path / "certs"
-    assert cluster.cli("certs", str(cluster.spec()), "--out", str(certs)).returncode == 0
-    cluster.scheme = "tls"
-    cluster.start_router(zenoh_config=certs / "router.json5")
+    certs = tls_router(cluster, cluster.spec(), tmp_path)
     with pytest.raises(ControlError, match="no client certificate"):
         open_client([cluster.endpoint])
     # And an agent started with another fleet's files tells which file and why, then exits.
@@ -163,10 +169,7 @@ def test_deploy_before_agents_gives_every_agent_the_discovery_host_under_tls(fre
     first, asks hostA's status for its address once hostA is up: the access rules must let it."""
     cluster = fresh_cluster
     spec = cluster.spec()
-    certs = tmp_path / "certs"
-    assert cluster.cli("certs", str(spec), "--out", str(certs)).returncode == 0
-    cluster.scheme = "tls"
-    cluster.start_router(zenoh_config=certs / "router.json5")
+    certs = tls_router(cluster, spec, tmp_path)
     operator = certs / "operator-operator.json5"
     poll(  # the router listens, but its registry is declared just after
         lambda: fleet_cli(cluster, "status", config=operator).returncode == 0,
@@ -207,10 +210,7 @@ def test_an_agent_that_cannot_reach_the_router_says_so(fresh_cluster, tmp_path):
 
 def test_an_agent_named_otherwise_than_its_certificate_is_refused(fresh_cluster, tmp_path):
     cluster = fresh_cluster
-    certs = tmp_path / "certs"
-    assert cluster.cli("certs", str(cluster.spec()), "--out", str(certs)).returncode == 0
-    cluster.scheme = "tls"
-    cluster.start_router(zenoh_config=certs / "router.json5")
+    certs = tls_router(cluster, cluster.spec(), tmp_path)
     cluster.start_agent("hostB", certs / "agent-hostA.json5")
     process = cluster.processes["agent-hostB"]
     assert process.wait(timeout=30) == 2
