@@ -8,6 +8,8 @@ from collections.abc import Iterator
 
 import pytest
 
+from fleet.dataplane.discovery import discovery_server
+from fleet.runtime.environment import discovery_server_port, ros_environment
 from fleet.testing.isolation import reserve_domain_id
 from fleet.testing.ros import NoSuchParameter, RosProbe
 
@@ -21,9 +23,22 @@ def domain() -> Iterator[int]:
 
 
 @pytest.fixture
-def node(domain) -> Iterator[RosProbe]:
+def server(domain, tmp_path) -> Iterator[str]:
+    """A Fast DDS discovery server of the test's domain, as every deployed fleet has: the probes
+    meet through it, as a FleetHandle's probe meets the fleet's nodes."""
+    address = f"127.0.0.1:{discovery_server_port(domain)}"
+    process = discovery_server(address, ros_environment(domain), tmp_path / "discovery.log")
+    process.keep_running()
+    try:
+        yield address
+    finally:
+        process.stop()
+
+
+@pytest.fixture
+def node(domain, server) -> Iterator[RosProbe]:
     """A probe standing in for a fleet's node (spun in a thread, so it answers parameter services)."""
-    probe = RosProbe("robot_node", domain_id=domain)
+    probe = RosProbe("robot_node", domain_id=domain, discovery_server=server)
     spinner = threading.Thread(target=probe.executor.spin, daemon=True)
     spinner.start()
     try:
@@ -34,20 +49,20 @@ def node(domain) -> Iterator[RosProbe]:
 
 
 @pytest.fixture
-def probes(domain, node) -> Iterator[tuple[RosProbe, RosProbe]]:
+def probes(domain, server, node) -> Iterator[tuple[RosProbe, RosProbe]]:
     """The test's probe and the node."""
-    with RosProbe("test_probe", domain_id=domain) as test:
+    with RosProbe("test_probe", domain_id=domain, discovery_server=server) as test:
         yield test, node
 
 
-def test_the_first_published_message_arrives(domain, node):
+def test_the_first_published_message_arrives(domain, server, node):
     from std_msgs.msg import String
 
     received: list[str] = []
     node.node.create_subscription(String, "/robot/command", lambda m: received.append(m.data), 10)
     # A probe created and used at once, as by a test right after its fleet came up: it has
     # discovered nobody yet when it publishes.
-    with RosProbe("test_probe", domain_id=domain) as test:
+    with RosProbe("test_probe", domain_id=domain, discovery_server=server) as test:
         test.publish("/robot/command", String(data="go"))
         test.wait_until(lambda: received, timeout=5, what="the one message published")
     assert received == ["go"]
