@@ -7,6 +7,7 @@ that `fleet --help` stays fast.
 
 from __future__ import annotations
 
+import gc
 import sys
 
 import typer
@@ -75,8 +76,20 @@ for _module in (
     _module.register(app)
 
 
+def entry_point() -> None:
+    """The `fleet` program (console script and `python -m fleet`): main, then the exit."""
+    try:
+        main()
+    finally:
+        # The process is ending: spare the interpreter's exit its garbage collection passes over
+        # every object typer, pydantic and zenoh made (frozen objects are skipped, not leaked).
+        # At 1,000 robots: 0.90 of the time of `fleet status --json`, 0.92 of a no-op redeploy
+        # (bench/README.md).  Not in main, which tests call in their own long-lived process.
+        gc.freeze()
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: user errors become one line on stderr and their exit code (2 for bad input).
+    """Run the command line: user errors become one line on stderr and their exit code (2 for bad input).
 
     Usage errors of the command line itself (unknown option, missing argument, a value of the
     wrong kind) too: click would draw a box of several lines, so it is asked to raise instead.

@@ -56,3 +56,24 @@ def test_status_imports_only_what_it_uses():
     )
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout) == []
+
+
+# The program's way out: its exit code, its objects frozen so that the interpreter's exit skips
+# its garbage collection passes (fleet.cli.entry_point).
+EXIT_PROBE = """
+import atexit, gc, sys
+atexit.register(lambda: print("frozen", gc.get_freeze_count() > 0, file=sys.stderr))
+sys.argv = ["fleet", *{args}]
+from fleet.cli import entry_point
+entry_point()
+"""
+
+
+def test_the_program_exits_with_its_code_and_its_objects_frozen(tmp_path):
+    missing = tmp_path / "missing.yaml"
+    for args, code in ((["--version"], 0), (["render", str(missing)], 2)):
+        result = subprocess.run(
+            [sys.executable, "-c", EXIT_PROBE.format(args=args)], capture_output=True, text=True, timeout=60
+        )
+        assert result.returncode == code, result.stderr
+        assert "frozen True" in result.stderr
