@@ -97,6 +97,7 @@ class Exporter:
         self.sent = 0  # messages put (a message for two agents counts twice)
         self.puts = 0
         self._session: Any = None
+        self._publishers: dict[str, Any] = {}  # agent -> the current session's publisher of its batches
         self._lock = threading.Lock()
         self._importers: dict[str, set[str]] = {}  # topic -> agents that bring it in
         self._resend: list[tuple[str, str]] = []  # (agent, latched topic) whose token just appeared
@@ -120,7 +121,7 @@ class Exporter:
         from fleet.wire.protocol import import_token_key
 
         with self._lock:
-            self._importers, self._session = {}, session
+            self._importers, self._session, self._publishers = {}, session, {}
         pattern = import_token_key(self.fleet, "*", "**")
         return [session.liveliness().declare_subscriber(pattern, self._on_token, history=True)]
 
@@ -162,7 +163,7 @@ class Exporter:
         with self._lock:
             importers = {topic: set(agents) for topic, agents in self._importers.items()}
             resend, self._resend = self._resend, []
-            session = self._session
+            session, publishers = self._session, self._publishers
         out: dict[str, list[bytes]] = collections.defaultdict(list)
         for agent, topic in resend:
             out[agent].extend(self._latched[topic])
@@ -177,24 +178,26 @@ class Exporter:
             for agent in importers.get(topic, ()):
                 out[agent].append(one)
         if session is not None and out:
-            self._put(session, out)
+            self._put(session, publishers, out)
 
-    def _put(self, session, out: dict[str, list[bytes]]) -> None:
+    def _put(self, session, publishers: dict[str, Any], out: dict[str, list[bytes]]) -> None:
         import zenoh
 
         from fleet.wire.protocol import batch_key
 
         for agent, records in out.items():
-            for payload in batches(records):
-                try:
-                    session.put(
-                        batch_key(self.fleet, agent),
-                        payload,
-                        congestion_control=zenoh.CongestionControl.DROP,
+            try:
+                if (publisher := publishers.get(agent)) is None:
+                    # A declared publisher, not a put with the key's text: the router resolves
+                    # the key once, not for every batch.
+                    publisher = publishers[agent] = session.declare_publisher(
+                        batch_key(self.fleet, agent), congestion_control=zenoh.CongestionControl.DROP
                     )
-                except Exception:  # the session is being replaced: lost, as on a cut link
-                    return
-                self.puts += 1
+                for payload in batches(records):
+                    publisher.put(payload)
+                    self.puts += 1
+            except Exception:  # the session is being replaced: lost, as on a cut link
+                return
             self.sent += len(records)
 
 
