@@ -30,7 +30,7 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from fleet.dashboard.live import LiveFleet, UnknownRobot
-from fleet.errors import ControlError, FleetError
+from fleet.errors import BadRequest, ControlError, FleetError
 
 log = logging.getLogger("fleet.dashboard")
 
@@ -139,10 +139,11 @@ def create_app(live: LiveFleet) -> Starlette:
 
 async def _answer(function, *args: Any) -> JSONResponse:
     """A blocking request to the fleet, in a worker thread; its failure as {"error": ...}: 404 for
-    a robot the fleet does not have, 502 when the fleet failed to answer, 400 for a bad request."""
+    a robot, node or parameter the fleet does not have, 502 when the fleet failed to answer, 400
+    for a bad request."""
     try:
         return JSONResponse(await asyncio.to_thread(function, *args))
-    except UnknownRobot as error:
+    except (UnknownRobot, BadRequest) as error:  # BadRequest: the agent does not know what was named
         return JSONResponse({"error": str(error)}, status_code=404)
     except ControlError as error:  # the agent or the router did not answer, or refused
         return JSONResponse({"error": str(error)}, status_code=502)

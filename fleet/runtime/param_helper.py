@@ -156,7 +156,7 @@ def main(argv: list[str]) -> int:
         got = _call(node, GetParameters, f"{fqn}/get_parameters", GetParameters.Request(names=[name]))
         current = got.values[0] if got.values else None
         if current is None or current.type == ParameterType.PARAMETER_NOT_SET:
-            _reply(False, reason=f"node {fqn} has no parameter {name!r}")
+            _reply(False, reason=f"node {fqn} has no parameter {name!r}", code="not_found")
             return 0
         if op == "get":
             _reply(True, _python_value(current))

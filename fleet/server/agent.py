@@ -826,6 +826,8 @@ class Agent:
         else:
             fqn = next(iter(nodes))
             reply = call_parameter_service([fqn], request, unit.env)
+            if not reply.ok and reply.code in p.INPUT_ERRORS:  # a name the node does not have: the asker's input
+                raise p.ProtocolError(reply.reason, reply.code)
             if request.op == "set" and reply.ok:
                 self._record_override(request, fqn, reply.value)
         yield p.param_key(request.fleet, self.name), p.encode(reply)

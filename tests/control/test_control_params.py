@@ -75,8 +75,13 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     assert yaml.safe_load(params_file.read_text())["/robot1/controller"]["ros__parameters"]["max_speed"] == 1.0
     assert robot(cluster.view("tiny"), "robot1").overrides
 
-    unknown = param(cluster, "get", "robot1", "controller", "no_such_parameter")
-    assert unknown.returncode != 0 and "no parameter" in unknown.stderr
+    # So is a parameter the node does not have, to get or to set.
+    for args in (["get"], ["set", "0.5"]):
+        unknown = param(cluster, args[0], "robot1", "controller", "no_such_parameter", *args[1:])
+        assert unknown.returncode == 2, unknown.stdout + unknown.stderr
+        assert unknown.stderr == (
+            "fleet: error: <command line>: node /robot1/controller has no parameter 'no_such_parameter'\n"
+        ), unknown.stderr
     malformed = param(cluster, "get", "robot1", "controller", "max speed")
     assert malformed.returncode == 2 and malformed.stderr.count("\n") == 1, malformed.stderr
     assert malformed.stderr.startswith("fleet: error: <command line>: invalid parameter request: name: ")

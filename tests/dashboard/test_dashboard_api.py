@@ -1,5 +1,6 @@
-"""The dashboard's requests on a robot answer as HTTP does: 404 for a robot the fleet does not have,
-502 when the fleet fails to answer (no network here: the app is called as an ASGI application)."""
+"""The dashboard's requests on a robot answer as HTTP does: 404 for a robot, node or parameter the
+fleet does not have, 502 when the fleet fails to answer (no network here: the app is called as an
+ASGI application)."""
 
 from __future__ import annotations
 
@@ -10,15 +11,18 @@ from typing import Any
 
 from fleet.dashboard.live import LiveFleet
 from fleet.dashboard.server import create_app
-from fleet.errors import ControlError
+from fleet.errors import BadRequest, ControlError
 from fleet.plan.view import FleetView, RobotRow
 
 
 class SilentAgents:
-    """A client whose agents never answer."""
+    """A client whose agents never answer logs, and know no parameter."""
 
     def logs(self, agent: str, request: Any, timeout: float) -> Any:
         raise ControlError(f"agent {agent} did not answer")
+
+    def param(self, agent: str, request: Any) -> Any:
+        raise BadRequest(f"node /{request.robot}/{request.node} has no parameter {request.name!r}")
 
 
 def get(live: LiveFleet, path: str) -> tuple[int, dict[str, Any]]:
@@ -43,3 +47,6 @@ def test_logs_of_an_unknown_robot_are_not_found_and_of_a_silent_agent_a_bad_gate
     assert get(live, "/api/logs/other/robot1") == (404, {"error": "no robot named 'robot1' in fleet other"})
     assert get(live, "/api/params/demo/robot9")[0] == 404
     assert get(live, "/api/logs/demo/robot1") == (502, {"error": "agent local did not answer"})
+    # A node or parameter the robot does not have (the agent's refusal): not found either.
+    missing = {"error": "node /robot1/controller has no parameter 'nosuch'"}
+    assert get(live, "/api/param/demo/robot1/controller/nosuch") == (404, missing)
