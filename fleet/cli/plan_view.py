@@ -110,6 +110,8 @@ def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:
             Location(f"--explain {key}"),
         )
     settings: list[Setting] = plan.parameters.explain(node, name)
+    if inline := plan.inline_setting(node, name):
+        settings.append(inline)
     if not settings:
         known = sorted({n for (nd, n) in plan.parameters.history if nd == node})
         raise SpecError(

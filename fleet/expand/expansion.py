@@ -16,9 +16,17 @@ from fleet.errors import Location, SpecError, TemplateError, relative_to_cwd
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, outline
-from fleet.expand.parameters import Override, ParameterLayers, check_names_disjoint, check_type_stable, parse_override
+from fleet.expand.parameters import (
+    INLINE_LAYER,
+    Override,
+    ParameterLayers,
+    Setting,
+    check_names_disjoint,
+    check_type_stable,
+    parse_override,
+)
 from fleet.expand.python_launch import python_source
-from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference
+from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference, rendered_launch_path
 from fleet.expand.shared import SharedTopic, conflict
 from fleet.expand.templating import TemplateSet, argument_problem, builtin_template_dirs
 from fleet.rules import (
@@ -30,8 +38,10 @@ from fleet.rules import (
     WORLD_UNIT,
     node_name_problem,
 )
+from fleet.runtime.launch_file import InlineSetting
 from fleet.spec.model import FleetSpec, Model, Robot
 from fleet.spec.params import flatten, unflatten
+from fleet.spec.rcl_types import value_text
 from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input
 from fleet.wire.limits import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
 from fleet.world.description import world_spec
@@ -61,6 +71,16 @@ class RobotPlan:
     launch_text: str  # the rendered .launch.yaml
     launch_python: str  # the same as a Python launch file
     shared: tuple[SharedTopic, ...] = ()  # topics its template shares (share(...))
+    # node -> the parameters its launch file gives it inline after its parameter file: they win
+    inline: dict[str, dict[str, InlineSetting]] = field(default_factory=dict)
+
+    def inline_setting(self, node: str, name: str) -> Setting | None:
+        """The launch file's own value of a node's parameter, which wins over every layer."""
+        found = self.inline.get(node, {}).get(name)
+        return None if found is None else Setting(found.value, INLINE_LAYER, str(self.launch_place(found)))
+
+    def launch_place(self, setting: InlineSetting) -> Location:
+        return Location(rendered_launch_path(self.name), setting.where.line, setting.where.column)
 
 
 @dataclass
@@ -136,7 +156,8 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     _apply_overrides(spec, robots, overrides)
     _check_default_nodes(spec, robots)
     _check_shared(spec, robots, templates)
-    # One warning per parameter name a template does not know, however many robots set it.
+    # One warning per parameter name a template does not know, or gives inline, however many
+    # robots set it.
     unknown: dict[tuple[str, str, str], list[str]] = {}
     checked: set[int] = set()  # shared layers checked with a robot: the next ones check only what they changed
     for plan in robots:
@@ -145,6 +166,9 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
         check_type_stable(layers, plan.name, nodes)
         check_names_disjoint(layers, plan.name, nodes)
         for (node, name), warning in layers.unknown_to_template(nodes).items():
+            if name not in plan.inline.get(node, {}):  # known to the launch file: warned below
+                unknown.setdefault((plan.template, node, name), []).append(warning)
+        for (node, name), warning in _unused_for_inline(plan).items():
             unknown.setdefault((plan.template, node, name), []).append(warning)
         checked.add(id(layers.origin))
     sections: dict[DocPath, str] = {}
@@ -155,6 +179,23 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     _check_deliverable(spec, bundles, bridge)
     warnings = sorted(_once(found) for found in unknown.values())
     return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=warnings)
+
+
+def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:
+    """(node, name) -> a warning, for each value the spec or `--set` gives a parameter that the
+    launch file gives inline after the parameter file: rcl applies the later file, so the node
+    never gets the spec's value (the template's own defaults are its author's to keep apart)."""
+    warnings = {}
+    for node, settings in plan.inline.items():
+        for name, inline in settings.items():
+            history = plan.parameters.history.get((node, name))
+            if history and history[-1].layer != "template":
+                warnings[(node, name)] = (
+                    f"{history[-1].source}: {node}.{name} is not used: the launch file gives it inline after the "
+                    f"parameter file ({plan.launch_place(inline)}: {value_text(inline.value)}), and that value wins; "
+                    "set it through the template's launch arguments, if it has one"
+                )
+    return warnings
 
 
 def _once(warnings: list[str]) -> str:
@@ -251,6 +292,7 @@ def _plan_robot(
         launch_text=rendered.text,
         launch_python=rendered.python,
         shared=rendered.shared,
+        inline=rendered.inline,
     )
 
 

@@ -20,6 +20,8 @@ from fleet.spec.params import coerce_like, command_line_value, flatten, namespac
 from fleet.spec.yaml_source import DocPath
 
 LAYERS = ("template", "defaults", "robot", "--set")
+# Above them all, outside the parameter file: a value the launch file gives a node inline after it.
+INLINE_LAYER = "launch file"
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from fleet.expand.shared import SharedTopic
 from fleet.expand.templating import TemplateSet
 from fleet.launchfile import description as d
 from fleet.rules import LAUNCH_SUFFIX, PARAMS_SUFFIX, PYTHON_LAUNCH_SUFFIX
-from fleet.runtime.launch_file import check_bundle_launch
+from fleet.runtime.launch_file import InlineSetting, check_bundle_launch
 from fleet.spec.yaml_source import load_yaml
 
 # Valid ROS name tokens, so the placeholder rendering outlines like a real one.
@@ -44,6 +44,10 @@ class RenderedLaunch:
     # Why an agent's check would refuse to run it (check_rendered_launch), or None; raised by the
     # expansion once the spec's own checks of the robot (its launch_args) have had their say.
     problem: FleetError | None = None
+    # node name -> the parameters its launch file gives it inline after the robot's parameter
+    # file, which therefore win over every layer of the file (check_rendered_launch); each placed
+    # by line and column only, in the robot's own launch file (rendered_launch_path)
+    inline: dict[str, dict[str, InlineSetting]] = field(default_factory=dict)
 
 
 def params_file_reference(robot: str) -> str:
@@ -99,6 +103,12 @@ class LaunchRenderer:
             argument_defaults=argument_defaults,
             shared=shared,
             problem=None if shape.problem is None else _named(shape.problem, name, namespace),
+            inline={
+                _identify(node, name, namespace): {
+                    parameter: _identified_setting(setting, name, namespace) for parameter, setting in settings.items()
+                }
+                for node, settings in shape.inline.items()
+            },
         )
 
     def _parse(
@@ -113,8 +123,9 @@ class LaunchRenderer:
                 f"rendered invalid YAML{line}: {error.message}", Location(rendered.template_file)
             ) from None
         shape, description = outline(document, source, rendered.template_file, rendered_launch_path(robot))
+        inline: dict[str, dict[str, InlineSetting]] = {}
         try:
-            check_rendered_launch(description, robot, rendered.template_file)
+            inline = check_rendered_launch(description, robot, rendered.template_file)
             problem = None
         except LaunchFileError as error:
             problem = error
@@ -127,6 +138,7 @@ class LaunchRenderer:
             argument_defaults=rendered.arguments_asked,
             shared=tuple(rendered.shared),
             problem=problem,
+            inline=inline,
         )
 
 
@@ -135,20 +147,39 @@ def rendered_launch_path(robot: str) -> Path:
     return Path(robot) / f"{robot}{LAUNCH_SUFFIX}"
 
 
-def check_rendered_launch(description: d.LaunchDescription, robot: str, template_file: Path) -> None:
+def check_rendered_launch(
+    description: d.LaunchDescription, robot: str, template_file: Path
+) -> dict[str, dict[str, InlineSetting]]:
     """Run the robot's launch file (read as rendered_launch_path) as an agent's check would
     (check_bundle_launch: the runner's own interpreter, less what only the agent's computer can
-    tell), located where `fleet render -o DIR` writes it: robot1/robot1.launch.yaml:LINE:COL."""
+    tell), located where `fleet render -o DIR` writes it: robot1/robot1.launch.yaml:LINE:COL.
+    Returns what each node is given inline after the robot's parameter file, placed by line and
+    column (the file is the robot's, whichever robot's copy of a shape this is)."""
     path = description.path
     files = frozenset(f"{robot}{suffix}" for suffix in (LAUNCH_SUFFIX, PYTHON_LAUNCH_SUFFIX, PARAMS_SUFFIX))
     try:
-        check_bundle_launch(description, files)
+        inline = check_bundle_launch(description, files, f"{robot}{PARAMS_SUFFIX}")
     except LaunchFileError as error:
-        # The reader places what it reads in the rendered text's source (the template): the
-        # lines and columns are the rendered file's.
-        place = error.location
-        where = Location(path, place.line, place.column) if place is not None else Location(path)
-        raise type(error)(f"{error.message} (rendered from {template_file.name})", where) from None
+        message = f"{error.message} (rendered from {template_file.name})"
+        raise type(error)(message, _rendered(path, error.location)) from None
+    return {
+        node: {
+            name: InlineSetting(s.value, Location(None, s.where.line, s.where.column)) for name, s in settings.items()
+        }
+        for node, settings in inline.items()
+    }
+
+
+def _rendered(path: Path, place: Location | None) -> Location:
+    """A place the reader found in the rendered text's source (the template), in the rendered
+    file: the lines and columns are the rendered file's."""
+    return Location(path, place.line, place.column) if place is not None else Location(path)
+
+
+def _identified_setting(setting: InlineSetting, name: str, namespace: str) -> InlineSetting:
+    if not isinstance(setting.value, str):  # the same for every robot: shared
+        return setting
+    return InlineSetting(_identify(setting.value, name, namespace), setting.where)
 
 
 def _named(error: FleetError, name: str, namespace: str) -> FleetError:

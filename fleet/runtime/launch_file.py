@@ -110,7 +110,7 @@ class _Scope:
 @dataclass
 class _NodeDraft:
     """A process before its inline parameters are written: params are ('file', path),
-    ('inline', key, {name: value}) or ('rule', 'name:=value')."""
+    ('inline', key, {name: value}, where written) or ('rule', 'name:=value')."""
 
     launch: NodeLaunch
     executable_path: Path | None  # None: a plain executable (cmd is final)
@@ -524,7 +524,7 @@ class _Interpreter:
                     raise LaunchFileError(f"parameter file '{path}' not found", param.where)
                 params.append(("file", os.path.abspath(path)))
             else:
-                params.append(("inline", key, self.inline_param(param, scope, file)))
+                params.append(("inline", key, self.inline_param(param, scope, file), param.where))
         remaps = list(scope.configurations.get("ros_remaps", []))
         remaps += [_checked_remap(text(source), text(target), where) for source, target in node.remaps]
         exec_name = None if node.exec_name is None else text(node.exec_name)
@@ -714,13 +714,39 @@ def _interpret(
     return interpreter
 
 
-def check_bundle_launch(description: d.LaunchDescription, files: frozenset[str]) -> None:
+@dataclass(frozen=True)
+class InlineSetting:
+    """A parameter value a launch file gives a node inline (`param: [{name, value}]`)."""
+
+    value: Any
+    where: Location
+
+
+def check_bundle_launch(
+    description: d.LaunchDescription, files: frozenset[str], params_file: str | None = None
+) -> dict[str, dict[str, InlineSetting]]:
     """Run a unit's launch file (read from its bundle, before any agent has it) the way
     check_launch_file would on an agent, less what only the agent's computer can tell: whether
     packages, executables, environment variables, included files and files outside the bundle are
-    there.  Raises LaunchFileError, located in `description.path`."""
-    interpreter = _Interpreter({}, {}, "", bundle=(description.path.parent, files))
+    there.  Raises LaunchFileError, located in `description.path`.
+
+    Returns, for each node (by name) given the bundle's file `params_file`, the parameters it is
+    given inline after that file: they win over the file's values (later parameter files win)."""
+    directory = description.path.parent
+    interpreter = _Interpreter({}, {}, "", bundle=(directory, files))
     interpreter.run(description)
+    after_file: dict[str, dict[str, InlineSetting]] = {}
+    if params_file is None:
+        return after_file
+    for draft in interpreter.drafts:
+        read_file = False
+        for param in draft.params:
+            if param[0] == "file" and param[1] == os.path.abspath(directory / params_file):
+                read_file = True
+            elif param[0] == "inline" and read_file and draft.launch.name is not None:
+                found = after_file.setdefault(draft.launch.name, {})
+                found.update({name: InlineSetting(value, param[3]) for name, value in param[2].items()})
+    return after_file
 
 
 def check_launch_file(

@@ -155,3 +155,71 @@ def test_rcl_reads_every_value_fleet_wrote_with_its_type(tmp_path, ros_env):
     assert localizer["debug"] == ["BOOL", True]
     assert localizer["process_noise_covariance"][0] == "DOUBLE_ARRAY"
     assert got["/robot2/local_costmap/local_costmap"]["resolution"] == ["DOUBLE", 0.025]
+
+
+# A node that prints the use_sim_time its parameter files give it.
+PRINT_USE_SIM_TIME = """
+import sys, rclpy
+from rclpy.node import Node
+rclpy.init(args=sys.argv)
+node = Node("probe")
+print(node.get_parameter("use_sim_time").value)
+node.destroy_node()
+rclpy.shutdown()
+"""
+
+
+@pytest.mark.integration
+def test_a_value_the_launch_file_gives_inline_wins_over_the_parameter_file_as_explain_says(tmp_path, ros_env, capsys):
+    """diff_drive gives every node use_sim_time inline after the robot's parameter file: a --set
+    of it is written to the file, warned about, and shown overridden by --explain, and real rcl,
+    reading the files of the command line the runner builds, gets the launch file's value."""
+    from fleet.cli.plan_view import explain_data
+    from fleet.expand import expand_fleet
+    from fleet.runtime.launch_file import load_launch_file
+    from fleet.spec.load import load_spec
+    from tests.runtime.runtime_helpers import FakePrefix
+
+    sets = ["--set", "robot1.controller.use_sim_time=false"]
+    out = tmp_path / "out"
+    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "-o", str(out), *sets]) == 0
+    warning = capsys.readouterr().out
+    assert "--set robot1.controller.use_sim_time=false: controller.use_sim_time is not used" in warning
+    assert "(robot1/robot1.launch.yaml:24:9: true), and that value wins" in warning
+    assert "not a parameter of the template" not in warning  # the launch file knows the name
+
+    expansion = expand_fleet(load_spec(FLEETS / "two_robots.yaml"), sets[1::2])
+    explained = explain_data(expansion, "robot1.controller.use_sim_time")
+    assert explained["value"] is True
+    assert [(layer["layer"], layer["value"], layer["effective"]) for layer in explained["layers"]] == [
+        ("--set", False, False),
+        ("launch file", True, True),
+    ]
+
+    prefix = FakePrefix(tmp_path / "prefix")
+    for exe in ("controller", "battery", "safety"):
+        prefix.add(exe, "#!/bin/sh\nexec sleep 100\n", package="fleet_nodes")
+    launch = out / "robot1" / "robot1.launch.yaml"
+    plan = load_launch_file(launch, env=prefix.env(), params_dir=tmp_path / "params")
+    (controller,) = [node for node in plan.nodes if node.name == "controller"]
+    files = [controller.cmd[i + 1] for i, part in enumerate(controller.cmd) if part == "--params-file"]
+    assert files[0] == str(out / "robot1" / "robot1.params.yaml") and len(files) == 2
+    command = [
+        sys.executable,
+        "-c",
+        PRINT_USE_SIM_TIME,
+        "--ros-args",
+        "-r",
+        "__ns:=/robot1",
+        "-r",
+        "__node:=controller",
+    ]
+    for path in files:
+        command += ["--params-file", path]
+    result = subprocess.run(command, env=ros_env, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().splitlines()[-1] == "True"
+    # Without the inline value, the file's would be read: the --set reached the file.
+    files_only = command[: command.index("--params-file") + 2]
+    result = subprocess.run(files_only, env=ros_env, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and result.stdout.strip().splitlines()[-1] == "False", result.stderr
