@@ -13,6 +13,7 @@ agent of the fleet is online names the host without an address: the agents find 
 from __future__ import annotations
 
 import hashlib
+import ipaddress
 import os
 import shutil
 import sys
@@ -36,22 +37,27 @@ class DiscoveryPlan:
 
 
 def plan_discovery(
-    world_agent: str | None, agents: list[str], addresses: dict[str, str], domain_id: int
+    world_agent: str | None,
+    agents: list[str],
+    addresses: dict[str, str],
+    domain_id: int,
+    hostnames: Mapping[str, str] | None = None,
 ) -> DiscoveryPlan:
     """Which agent runs the fleet's discovery server (pure).
 
-    `agents`: the agents the fleet places units on; `addresses`: online agents -> address."""
+    `agents`: the agents the fleet places units on; `addresses`: online agents -> address;
+    `hostnames`: agents -> the name of their computer, where known."""
     port = discovery_server_port(domain_id)
     preferred = world_agent or (sorted(agents)[0] if agents else None)
-    if preferred is not None and addresses.get(preferred):
-        return DiscoveryPlan(preferred, f"{addresses[preferred]}:{port}")
-    for agent in sorted(agents):
-        if addresses.get(agent):
-            return DiscoveryPlan(
-                agent,
-                f"{addresses[agent]}:{port}",
-                f"agent {preferred} is offline: agent {agent} runs the DDS discovery server",
-            )
+    host = preferred if preferred is not None and addresses.get(preferred) else None
+    note = ""
+    if host is None and (host := next((agent for agent in sorted(agents) if addresses.get(agent)), None)):
+        note = f"agent {preferred} is offline: agent {host} runs the DDS discovery server"
+    if host is not None:
+        server = f"{addresses[host]}:{port}"
+        if unreachable := _loopback_for_others(host, addresses[host], agents, hostnames or {}):
+            note = f"{note}; {unreachable}" if note else unreachable
+        return DiscoveryPlan(host, server, note)
     if preferred is None:
         return DiscoveryPlan(None, None)
     # Its address is not known yet: the host serves at the address it reports once up, and the
@@ -61,6 +67,25 @@ def plan_discovery(
         None,
         f"no agent of the fleet is online: agent {preferred} runs its DDS discovery server "
         "when it comes online, and the robots of other agents wait for it to reach across computers",
+    )
+
+
+def _loopback_for_others(host: str, address: str, agents: list[str], hostnames: Mapping[str, str]) -> str:
+    """Why agents on other computers cannot reach a server at a loopback address, or "".  An agent
+    reports 127.0.0.1 when it reaches the router through loopback (router and agent on one
+    computer) or was told `--address 127.0.0.1`."""
+    try:
+        loopback = ipaddress.ip_address(address).is_loopback
+    except ValueError:
+        loopback = address == "localhost"
+    here = hostnames.get(host)
+    elsewhere = sorted(a for a in agents if here and hostnames.get(a, here) != here)
+    if not loopback or not elsewhere:
+        return ""
+    return (
+        f"agent {host} runs the DDS discovery server at {address}, a loopback address: the robots of "
+        f"{', '.join(elsewhere)} on other computers cannot reach it. Start agent {host} with "
+        "--address set to its address on the robots' network (or --connect to the router's address on it)"
     )
 
 

@@ -113,7 +113,8 @@ def discovery_for(expansion: Expansion, view: FleetView) -> DiscoveryPlan:
         servers = local_servers(agents, expansion.domain_id, hostnames)
         return DiscoveryPlan(host, servers.get(host) if host else None, local=servers)
     addresses = {agent.name: agent.address for agent in view.agents if agent.online and agent.address}
-    return plan_discovery(_world_agent(expansion), agents, addresses, expansion.domain_id)
+    hostnames = {agent.name: agent.hostname for agent in view.agents if agent.hostname}
+    return plan_discovery(_world_agent(expansion), agents, addresses, expansion.domain_id, hostnames)
 
 
 def plan_record(expansion: Expansion, generation: int) -> p.PlanRecord:

@@ -156,6 +156,49 @@ def test_with_no_agent_online_the_world_agent_will_run_it_where_it_comes_up():
     assert (plan.host, plan.server) == ("rack_a", None)
 
 
+def test_a_server_at_a_loopback_address_that_other_computers_need_is_said_so():
+    """The world's agent reached the router through loopback (router on its computer), so it
+    reports 127.0.0.1: the robots of an agent on another computer could never reach the server."""
+    addresses = {"sim": "127.0.0.1", "rack_a": "10.0.0.2"}
+    plan = plan_discovery("sim", ["sim", "rack_a"], addresses, 7, {"sim": "ws", "rack_a": "rack"})
+    assert plan.server == f"127.0.0.1:{discovery_server_port(7)}"
+    assert "at 127.0.0.1, a loopback address: the robots of rack_a on other computers cannot reach it" in plan.note
+    assert "Start agent sim with --address" in plan.note
+    # All on one computer, or computers not known apart: loopback is right, nothing to say.
+    assert plan_discovery("sim", ["sim", "rack_a"], addresses, 7, {"sim": "ws", "rack_a": "ws"}).note == ""
+    assert plan_discovery("sim", ["sim", "rack_a"], addresses, 7).note == ""
+    # Said after why another agent runs it.
+    moved = plan_discovery("sim", ["sim", "rack_a", "rack_b"], {"rack_a": "::1"}, 7, {"rack_a": "a", "rack_b": "b"})
+    assert moved.note.startswith("agent sim is offline: agent rack_a runs the DDS discovery server; agent rack_a")
+    assert "the robots of rack_b on other computers" in moved.note
+
+
+def test_a_deploy_plans_the_server_from_the_agents_addresses_and_computers(tmp_path):
+    """discovery_for reads what the agents report (fleet.plan.desired): the world's agent on a
+    computer of its own at 127.0.0.1 gets the note a deploy prints."""
+    import yaml
+
+    from fleet.expand import expand_fleet
+    from fleet.plan.desired import discovery_for
+    from fleet.plan.view import AgentRow, FleetView
+    from fleet.spec.load import load_spec
+    from tests.checkout import FLEETS
+
+    data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
+    data["agents"] = {"sim": {}, "rack_a": {}}
+    data["defaults"]["agent"] = "rack_a"
+    data["world"]["agent"] = "sim"
+    spec = tmp_path / "two.yaml"
+    spec.write_text(yaml.safe_dump(data))
+    expansion = expand_fleet(load_spec(spec))
+    agents = [
+        AgentRow("sim", True, 0.1, hostname="ws", address="127.0.0.1"),
+        AgentRow("rack_a", True, 0.1, hostname="rack", address="10.0.0.2"),
+    ]
+    plan = discovery_for(expansion, FleetView(agents=agents, robots=[]))
+    assert plan.host == "sim" and "the robots of rack_a on other computers cannot reach it" in plan.note
+
+
 def test_a_fleet_without_agents_has_no_server():
     assert plan_discovery(None, [], {}, 7) == DiscoveryPlan(None, None)
 
