@@ -95,6 +95,12 @@ def deploy(
 
         print_json(plan_data(expansion)) if json else print_plan(expansion, console())
         return
+    if expansion.warnings:  # on stderr, as kubectl's: `--json` keeps stdout a document
+        from fleet.cli.output import labelled
+
+        errors = console(stderr=True)
+        for warning in expansion.warnings:
+            errors.print(labelled("warning:", "yellow", warning))
     agents = {bundle.agent for bundle in expansion.bundles}
     with connect_or_start(connect, zenoh_config, agents, lambda line: typer.echo(line, err=True)) as control:
         progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())

@@ -100,3 +100,15 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
         timeout=30,
         what="robot1's max_speed to read 1.0 after the restart",
     )
+
+    # A deploy warns as render does (on stderr: --json keeps stdout one document) of a parameter
+    # name the template's defaults do not have.
+    typo = cluster.cli(
+        "deploy", str(spec), "--set", "robot1.controller.max_sped=0.4", "--json", "--connect", cluster.endpoint
+    )
+    assert typo.returncode == 0, typo.stdout + typo.stderr
+    assert json.loads(typo.stdout)["ok"] is True
+    assert (
+        "warning: --set robot1.controller.max_sped=0.4: controller.max_sped is not a parameter of the template's "
+        "controller defaults (did you mean 'max_speed'?)" in typo.stderr
+    ), typo.stderr
