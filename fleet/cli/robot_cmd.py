@@ -139,7 +139,8 @@ def param_set(
 
         typer.echo(error_line(f"{robot}/{node} refused {name}={_shown(new)}: {reply.reason}"), err=True)
         raise typer.Exit(1)
-    typer.echo(f"{robot}/{node}: {name} = {_shown(reply.value)} (recorded on the agent)")
+    kept = reply.note or "recorded on the agent"  # the note: why it is not kept across restarts
+    typer.echo(f"{robot}/{node}: {name} = {_shown(reply.value)} ({kept})")
 
 
 def param_list(

@@ -158,7 +158,7 @@ def check_rendered_launch(
     path = description.path
     files = frozenset(f"{robot}{suffix}" for suffix in (LAUNCH_SUFFIX, PYTHON_LAUNCH_SUFFIX, PARAMS_SUFFIX))
     try:
-        inline = check_bundle_launch(description, files, f"{robot}{PARAMS_SUFFIX}")
+        inline = check_bundle_launch(description, files, frozenset({f"{robot}{PARAMS_SUFFIX}"}))
     except LaunchFileError as error:
         message = f"{error.message} (rendered from {template_file.name})"
         raise type(error)(message, _rendered(path, error.location)) from None

@@ -723,25 +723,24 @@ class InlineSetting:
 
 
 def check_bundle_launch(
-    description: d.LaunchDescription, files: frozenset[str], params_file: str | None = None
+    description: d.LaunchDescription, files: frozenset[str], params_files: frozenset[str] = frozenset()
 ) -> dict[str, dict[str, InlineSetting]]:
     """Run a unit's launch file (read from its bundle, before any agent has it) the way
     check_launch_file would on an agent, less what only the agent's computer can tell: whether
     packages, executables, environment variables, included files and files outside the bundle are
     there.  Raises LaunchFileError, located in `description.path`.
 
-    Returns, for each node (by name) given the bundle's file `params_file`, the parameters it is
-    given inline after that file: they win over the file's values (later parameter files win)."""
+    Returns, for each node (by name) given one of the bundle's `params_files`, the parameters it
+    is given inline after that file: they win over the file's values (later parameter files win)."""
     directory = description.path.parent
     interpreter = _Interpreter({}, {}, "", bundle=(directory, files))
     interpreter.run(description)
     after_file: dict[str, dict[str, InlineSetting]] = {}
-    if params_file is None:
-        return after_file
+    paths = {os.path.abspath(directory / name) for name in params_files}
     for draft in interpreter.drafts:
         read_file = False
         for param in draft.params:
-            if param[0] == "file" and param[1] == os.path.abspath(directory / params_file):
+            if param[0] == "file" and param[1] in paths:
                 read_file = True
             elif param[0] == "inline" and read_file and draft.launch.name is not None:
                 found = after_file.setdefault(draft.launch.name, {})

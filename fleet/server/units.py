@@ -15,7 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 from fleet.errors import FleetError, SpecError
 from fleet.files import write_atomic
-from fleet.rules import WORLD_STATUS_FILE, unit_log_dir
+from fleet.launchfile.reader import read_launch_file
+from fleet.rules import PARAMS_SUFFIX, WORLD_STATUS_FILE, unit_log_dir
+from fleet.runtime.launch_file import InlineSetting, check_bundle_launch
 from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, LaunchSession, NodeStatus
 from fleet.spec.yaml_source import safe_load
 from fleet.wire.protocol import (
@@ -219,6 +221,16 @@ class Unit:
         if isinstance(wall_time, (int, float)):  # written on this computer: same clock
             summary.age = round(max(0.0, time.time() - wall_time), 2)
         return summary
+
+    def given_inline(self, node: str, name: str) -> InlineSetting | None:
+        """The value the unit's launch file gives `node`'s parameter `name` inline after its
+        parameter file, which wins over the file whenever the node starts; None if it gives none."""
+        params_files = frozenset(name for name in self.bundle.files if name.endswith(PARAMS_SUFFIX))
+        try:
+            description = read_launch_file(self.directory / self.bundle.entry)
+            return check_bundle_launch(description, frozenset(self.bundle.files), params_files).get(node, {}).get(name)
+        except FleetError:  # a file it could not read: it runs no launch file of ours to ask
+            return None
 
     def node_names(self) -> list[str]:
         return [state.name for state in self.node_states()]

@@ -669,6 +669,7 @@ class ParamReply(Message):
     value: ParamValue | None = None
     reason: str = ""
     code: str = ""  # of a refusal: "not_found" when the node has no parameter of that name (bad input)
+    note: str = ""  # of an accepted set that is not kept across restarts, and why
     # op "list": node -> parameter -> its value (None: a type fleet does not carry, a byte array),
     # node -> the parameters set live with `fleet param set` (kept until the robot changes), and
     # node -> why it did not answer

@@ -49,6 +49,17 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr
     assert json.loads(param(cluster, "get", "robot1", "controller", "max_speed").stdout) == 1.0
 
+    # A parameter the launch file gives inline after the parameter file (one_controller's
+    # use_sim_time) is set live, but a restart would bring the launch file's value back: said, and
+    # not recorded as kept.
+    inline = param(cluster, "set", "robot1", "controller", "use_sim_time", "true")
+    assert inline.returncode == 0, inline.stdout + inline.stderr
+    assert inline.stdout == (
+        "robot1/controller: use_sim_time = true (set live only: the launch file gives use_sim_time inline after "
+        "the parameter file (robot1.launch.yaml:12:9: false), so a restart brings that value back)\n"
+    ), inline.stdout
+    assert param(cluster, "set", "robot1", "controller", "use_sim_time", "false").returncode == 0
+
     # Every parameter as the node holds it now, and which ones were set live.
     listed = param(cluster, "list", "robot1", "--json")
     assert listed.returncode == 0, listed.stdout + listed.stderr
