@@ -142,6 +142,13 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             [":7:11:", "robot 'r3'", "agent 'local' holds at most 2 robots", "agents.local.max_robots", "places 3"],
         ),
         ("fleet: demo\nfleet: other\nrobots: [{name: r1}]\n", [":2:1:", "duplicate key 'fleet'"]),
+        # Parameters written as a ROS parameter file writes them: rcl would read the parameter
+        # `ros__parameters.max_speed`, and the node keep its own max_speed.
+        (
+            "fleet: demo\nrobots:\n  - name: r1\n    parameters:\n      controller:\n"
+            "        ros__parameters: {max_speed: 0.5}\n",
+            [":6:9:", "controller.ros__parameters.max_speed", "right under the node"],
+        ),
     ],
 )
 def test_bad_spec(tmp_path, capsys, spec_text, expected):
@@ -159,6 +166,7 @@ def test_bad_spec(tmp_path, capsys, spec_text, expected):
         ("robot1.controller.max_speed", "expected ROBOT.NODE.PARAMETER=VALUE"),
         ("robot1.controller.max_speed=[[1]]", "nested lists"),
         ("robot1.controller.max_speed=fast", "is float in the template layer"),
+        ("robot1.controller.ros__parameters.max_speed=0.8", "'ros__parameters' is fleet's to write"),
     ],
 )
 def test_bad_set(tmp_path, capsys, override, expected):
@@ -172,6 +180,26 @@ def write_templates(tmp_path: Path, body: str) -> Path:
     templates.mkdir()
     (templates / "custom.launch.yaml.j2").write_text(body)
     return templates
+
+
+def test_template_defaults_in_the_ros_parameter_file_form_are_refused_at_their_key(tmp_path, capsys):
+    """A `.params.yaml` copied from a ROS parameter file (`controller: {ros__parameters: {...}}`):
+    every default would reach the node as `ros__parameters.<name>` (rcl checked), so none would
+    count; refused at the `ros__parameters` key, not warned about at the spec's values."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: controller, param: [{from: {{ params_file }}}]}\n",
+    )
+    (templates / "custom.params.yaml").write_text("controller:\n  ros__parameters:\n    max_speed: 0.3\n")
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\n"
+        "robots: [{name: r1, parameters: {controller: {max_speed: 0.5}}}]\n",
+    )
+    assert line.startswith(f"fleet: error: {templates / 'custom.params.yaml'}:2:3: parameter name ")
+    assert line.endswith("'ros__parameters' is fleet's to write: give them right under the node (controller: {x: 1.0})")
 
 
 def test_template_syntax_error_names_template_line(tmp_path, capsys):
