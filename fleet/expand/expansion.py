@@ -258,15 +258,20 @@ def _plan_robot(
         raise templates.not_found(template, _spec_location(spec, path))
     rendered = renderer.render(template, context, arguments, Location(spec.source_file))
     shape = rendered.outline
-    unknown = sorted(set(arguments) - set(shape.arguments))
+    # A value reaches a robot only through the template's arg() (it becomes the default the
+    # rendered file declares; agents pass no launch arguments), so only those take one.
+    unknown = sorted(set(arguments) - set(rendered.argument_defaults))
     if unknown:
         in_robot = unknown[0] in robot.launch_args
         path = ("robots", index, "launch_args", unknown[0]) if in_robot else ("defaults", "launch_args", unknown[0])
-        raise SpecError(
-            f"template {template!r} declares no launch argument {unknown[0]!r} "
-            f"(arguments: {', '.join(shape.arguments) or 'none'})",
-            _spec_location(spec, path),
+        refusal = (
+            f"template {template!r} declares launch argument {unknown[0]!r} without arg(), so no value reaches it "
+            f'(write its default as {{{{ arg("{unknown[0]}", ...) }}}})'
+            if unknown[0] in shape.arguments
+            else f"template {template!r} declares no launch argument {unknown[0]!r} "
+            f"(arguments: {', '.join(rendered.argument_defaults) or 'none'})"
         )
+        raise SpecError(refusal, _spec_location(spec, path))
     for name, value in arguments.items():
         if problem := argument_problem(value, rendered.argument_defaults.get(name)):
             path = (

@@ -10,6 +10,8 @@ from pathlib import Path
 import pytest
 
 from fleet.cli import main
+from fleet.expand import expand_fleet
+from fleet.spec import parse_spec
 
 GOOD = """\
 fleet: demo
@@ -200,6 +202,29 @@ def test_template_defaults_in_the_ros_parameter_file_form_are_refused_at_their_k
     )
     assert line.startswith(f"fleet: error: {templates / 'custom.params.yaml'}:2:3: parameter name ")
     assert line.endswith("'ros__parameters' is fleet's to write: give them right under the node (controller: {x: 1.0})")
+
+
+def test_a_launch_argument_the_template_declares_without_arg_takes_no_value(tmp_path, capsys):
+    """A value reaches a robot only through arg(), which writes it as the rendered file's default
+    (agents pass no launch arguments): given for one the launch file declares as plain YAML, it was
+    accepted and silently dropped (the node ran as the default said). One read through arg() but
+    not declared as `- arg:` takes its value."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- arg: {name: lasers, default: 'true'}\n- group:\n"
+        "  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: c, if: $(var lasers), args: {{ arg('rate', 5) }}}\n",
+    )
+    spec = "fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots:\n- name: r1\n"
+    spec += "  launch_args: {{{args}}}\n"
+    line = render_bad(tmp_path, capsys, spec.format(templates=templates, args="lasers: false"))
+    assert line == (
+        f"fleet: error: {tmp_path / 'fleet.yaml'}:6:17: template 'custom' declares launch argument 'lasers' without "
+        """arg(), so no value reaches it (write its default as {{ arg("lasers", ...) }})"""
+    )
+    (tmp_path / "fleet.yaml").write_text(spec.format(templates=templates, args="rate: 7"))
+    expansion = expand_fleet(parse_spec((tmp_path / "fleet.yaml").read_text(), str(tmp_path / "fleet.yaml")))
+    assert 'args: "7"}' in expansion.robots[0].launch_text
 
 
 def test_template_syntax_error_names_template_line(tmp_path, capsys):
