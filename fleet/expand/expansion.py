@@ -406,8 +406,15 @@ def _template_defaults(
     data, source = load_yaml(read_input(path, "template parameter defaults"), path, ((None,),))
     if data is None:
         return {}, path, source
-    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
+    if not isinstance(data, dict):
         raise TemplateError("parameter defaults must map node names to parameter mappings", Location(path, 1))
+    for node, values in data.items():
+        if not isinstance(values, dict):  # at the node's value, or its key when it has none (`battery:`)
+            got = "nothing" if values is None else f"a {type(values).__name__}"
+            raise TemplateError(
+                f"parameter defaults of node {node}: expected a mapping of parameters (write {{}} for none), got {got}",
+                source.locate((node,), key=values is None),
+            )
     from fleet.spec.load import check_parameters
 
     check_parameters(data, (), source)

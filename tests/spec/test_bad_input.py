@@ -204,6 +204,32 @@ def test_template_defaults_in_the_ros_parameter_file_form_are_refused_at_their_k
     assert line.endswith("'ros__parameters' is fleet's to write: give them right under the node (controller: {x: 1.0})")
 
 
+@pytest.mark.parametrize(
+    "defaults, place, got",
+    [
+        ("controller: {max_speed: 0.3}\nbattery:\n", ":2:1:", "got nothing"),  # was placed at line 1
+        ("controller: {max_speed: 0.3}\nbattery: [1.0]\n", ":2:10:", "got a list"),
+    ],
+)
+def test_template_defaults_of_a_node_that_are_no_mapping_are_placed_at_the_node(tmp_path, capsys, defaults, place, got):
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: controller, param: [{from: {{ params_file }}}]}\n"
+        "  - node: {pkg: a, exec: c, name: battery, param: [{from: {{ params_file }}}]}\n",
+    )
+    (templates / "custom.params.yaml").write_text(defaults)
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert line == (
+        f"fleet: error: {templates / 'custom.params.yaml'}{place} parameter defaults of node battery: "
+        f"expected a mapping of parameters (write {{}} for none), {got}"
+    )
+
+
 def test_a_launch_argument_the_template_declares_without_arg_takes_no_value(tmp_path, capsys):
     """A value reaches a robot only through arg(), which writes it as the rendered file's default
     (agents pass no launch arguments): given for one the launch file declares as plain YAML, it was
