@@ -230,6 +230,33 @@ def test_template_defaults_of_a_node_that_are_no_mapping_are_placed_at_the_node(
     )
 
 
+@pytest.mark.parametrize(
+    "node, problem",
+    [
+        ("{pkg: a, exec: b}", "node is missing 'name'"),
+        ("{pkg: a, exec: b, name: $(var who)}", "name '$(var who)' must be literal in a fleet template"),
+    ],
+)
+def test_a_node_fleet_cannot_outline_is_placed_at_its_line_of_the_output(tmp_path, capsys, node, problem):
+    """As the reader's own refusals are (the template's line is not known after rendering): the
+    message had no place at all."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- arg: {name: who, default: c}\n- group:\n"
+        "  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        f"  - node: {node}\n",
+    )
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert line.startswith(
+        f"fleet: error: {templates / 'custom.launch.yaml.j2'}: rendered launch file refused: "
+        f"line 5, column 5 of its output: {problem}"
+    ), line
+
+
 def test_a_launch_argument_the_template_declares_without_arg_takes_no_value(tmp_path, capsys):
     """A value reaches a robot only through arg(), which writes it as the rendered file's default
     (agents pass no launch arguments): given for one the launch file declares as plain YAML, it was
