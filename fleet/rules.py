@@ -147,6 +147,19 @@ def ros_name_problem(name: object) -> str | None:
     return None
 
 
+# The key a ROS parameter file puts between a node's name and its parameters.  fleet writes it
+# itself; given in a spec, a template's defaults or --set, it is a file copied in ROS's own form,
+# and rcl would read its values as parameters named `ros__parameters.<name>`, which no node has.
+ROS_PARAMETERS_KEY = "ros__parameters"
+
+
+def parameter_token_problem(token: object) -> str | None:
+    """Why `token` cannot be one dot-separated token of a parameter's name, or None."""
+    if token == ROS_PARAMETERS_KEY:
+        return f"{ROS_PARAMETERS_KEY!r} is fleet's to write: give them right under the node (controller: {{x: 1.0}})"
+    return ros_name_problem(token)
+
+
 def node_key_problem(name: object) -> str | None:
     """Why `name` cannot name a node in a robot's parameters, or None: a node's name
     (`controller`), or the name relative to the robot's namespace of a node that runs inside

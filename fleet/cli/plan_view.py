@@ -132,13 +132,18 @@ def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:
 def print_explain(data: dict[str, Any], console) -> None:
     from fleet.cli.output import table as make_table
 
-    layers = make_table("layer", "value", "source", "", title=f"{data['parameter']} = {value_text(data['value'])}")
+    layers = make_table("layer", "value", "source", "", title=f"{data['parameter']} = {_explained(data['value'])}")
     for layer in data["layers"]:
         layers.add_row(
             layer["layer"],
-            value_text(layer["value"]),
+            _explained(layer["value"]),
             layer["source"],
             "effective" if layer["effective"] else "overridden",
             style="bold" if layer["effective"] else "dim",
         )
     console.print(layers)
+
+
+def _explained(value: Any) -> str:
+    # None: the launch file starts the node without the parameter file (RobotPlan.inline_setting)
+    return "(the node's own default)" if value is None else value_text(value)

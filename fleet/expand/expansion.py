@@ -73,14 +73,19 @@ class RobotPlan:
     shared: tuple[SharedTopic, ...] = ()  # topics its template shares (share(...))
     # node -> the parameters its launch file gives it inline after its parameter file: they win
     inline: dict[str, dict[str, InlineSetting]] = field(default_factory=dict)
+    # node -> where its launch file starts it without the robot's parameter file: it gets none of it
+    without_file: dict[str, Location] = field(default_factory=dict)
 
     def inline_setting(self, node: str, name: str) -> Setting | None:
-        """The launch file's own value of a node's parameter, which wins over every layer."""
+        """The launch file's own value of a node's parameter, which wins over every layer; None
+        as the value of a node started without the parameter file: it keeps its own default."""
+        if node in self.without_file and (node, name) in self.parameters.history:
+            return Setting(None, INLINE_LAYER, str(self.launch_place(self.without_file[node])))
         found = self.inline.get(node, {}).get(name)
-        return None if found is None else Setting(found.value, INLINE_LAYER, str(self.launch_place(found)))
+        return None if found is None else Setting(found.value, INLINE_LAYER, str(self.launch_place(found.where)))
 
-    def launch_place(self, setting: InlineSetting) -> Location:
-        return Location(rendered_launch_path(self.name), setting.where.line, setting.where.column)
+    def launch_place(self, where: Location) -> Location:
+        return Location(rendered_launch_path(self.name), where.line, where.column)
 
 
 @dataclass
@@ -170,6 +175,8 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
                 unknown.setdefault((plan.template, node, name), []).append(warning)
         for (node, name), warning in _unused_for_inline(plan).items():
             unknown.setdefault((plan.template, node, name), []).append(warning)
+        for node, warning in _unread_for_lack_of_file(plan).items():
+            unknown.setdefault((plan.template, node, ""), []).append(warning)  # one for the whole node
         checked.add(id(layers.origin))
     sections: dict[DocPath, str] = {}
     bundles = [_robot_bundle(spec, plan, sections) for plan in robots]
@@ -190,11 +197,29 @@ def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:
         for name, inline in settings.items():
             history = plan.parameters.history.get((node, name))
             if history and history[-1].layer != "template":
+                place = plan.launch_place(inline.where)
                 warnings[(node, name)] = (
                     f"{history[-1].source}: {node}.{name} is not used: the launch file gives it inline after the "
-                    f"parameter file ({plan.launch_place(inline)}: {value_text(inline.value)}), and that value wins; "
+                    f"parameter file ({place}: {value_text(inline.value)}), and that value wins; "
                     "set it through the template's launch arguments, if it has one"
                 )
+    return warnings
+
+
+def _unread_for_lack_of_file(plan: RobotPlan) -> dict[str, str]:
+    """node -> a warning, for each node the launch file starts without the robot's parameter file
+    while fleet writes parameters for it there: launch gives a node only the files its `param`
+    list names, so it gets none of them (the template's defaults included) and keeps its own."""
+    warnings = {}
+    for node, where in plan.without_file.items():
+        names = sorted(name for (of, name) in plan.parameters.history if of == node)
+        if names:
+            shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+            warnings[node] = (
+                f"{plan.launch_place(where)}: node {node} is started without the robot's parameter file, so none "
+                f"of its parameters there reach it ({shown}); add `- from: {{{{ params_file }}}}` to its param "
+                f"list in template {plan.template}"
+            )
     return warnings
 
 
@@ -233,15 +258,20 @@ def _plan_robot(
         raise templates.not_found(template, _spec_location(spec, path))
     rendered = renderer.render(template, context, arguments, Location(spec.source_file))
     shape = rendered.outline
-    unknown = sorted(set(arguments) - set(shape.arguments))
+    # A value reaches a robot only through the template's arg() (it becomes the default the
+    # rendered file declares; agents pass no launch arguments), so only those take one.
+    unknown = sorted(set(arguments) - set(rendered.argument_defaults))
     if unknown:
         in_robot = unknown[0] in robot.launch_args
         path = ("robots", index, "launch_args", unknown[0]) if in_robot else ("defaults", "launch_args", unknown[0])
-        raise SpecError(
-            f"template {template!r} declares no launch argument {unknown[0]!r} "
-            f"(arguments: {', '.join(shape.arguments) or 'none'})",
-            _spec_location(spec, path),
+        refusal = (
+            f"template {template!r} declares launch argument {unknown[0]!r} without arg(), so no value reaches it "
+            f'(write its default as {{{{ arg("{unknown[0]}", ...) }}}})'
+            if unknown[0] in shape.arguments
+            else f"template {template!r} declares no launch argument {unknown[0]!r} "
+            f"(arguments: {', '.join(rendered.argument_defaults) or 'none'})"
         )
+        raise SpecError(refusal, _spec_location(spec, path))
     for name, value in arguments.items():
         if problem := argument_problem(value, rendered.argument_defaults.get(name)):
             path = (
@@ -293,6 +323,7 @@ def _plan_robot(
         launch_python=rendered.python,
         shared=rendered.shared,
         inline=rendered.inline,
+        without_file=rendered.without_file,
     )
 
 
@@ -375,8 +406,15 @@ def _template_defaults(
     data, source = load_yaml(read_input(path, "template parameter defaults"), path, ((None,),))
     if data is None:
         return {}, path, source
-    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
+    if not isinstance(data, dict):
         raise TemplateError("parameter defaults must map node names to parameter mappings", Location(path, 1))
+    for node, values in data.items():
+        if not isinstance(values, dict):  # at the node's value, or its key when it has none (`battery:`)
+            got = "nothing" if values is None else f"a {type(values).__name__}"
+            raise TemplateError(
+                f"parameter defaults of node {node}: expected a mapping of parameters (write {{}} for none), got {got}",
+                source.locate((node,), key=values is None),
+            )
     from fleet.spec.load import check_parameters
 
     check_parameters(data, (), source)

@@ -49,9 +49,7 @@ def outline(
     try:
         description = read_launch_document(data, source, path or Path(str(template_file)))
     except LaunchFileError as problem:
-        place = problem.location
-        at = f"line {place.line}, column {place.column} of its output: " if place and place.line else ""
-        raise TemplateError(f"rendered launch file refused: {at}{problem.message}", where) from None
+        raise _refused(problem.message, problem.location, where) from None
     arguments: dict[str, str] = {}
     for action in description.actions:
         if isinstance(action, d.DeclareArgument):
@@ -73,13 +71,13 @@ def _walk(actions: list[d.Action], namespace: str, nodes: list[NodeOutline], whe
         elif isinstance(action, d.Timer):
             _walk(action.actions, namespace, nodes, where, under_condition)
         elif isinstance(action, d.PushNamespace):
-            pushed = _literal(action.namespace, "namespace", where)
+            pushed = _literal(action.namespace, "namespace", action.where, where)
             namespace = pushed if pushed.startswith("/") else f"{namespace.rstrip('/')}/{pushed}"
         elif isinstance(action, d.Node):
             if action.name is None:
-                raise TemplateError("launch action is missing 'name'", where)
-            name = _literal(action.name, "name", where)
-            own = None if action.namespace is None else _literal(action.namespace, "namespace", where)
+                raise _refused("node is missing 'name'", action.where, where)
+            name = _literal(action.name, "name", action.where, where)
+            own = None if action.namespace is None else _literal(action.namespace, "namespace", action.where, where)
             if own is None:
                 full = namespace
             elif own.startswith("/"):
@@ -98,8 +96,16 @@ def _walk(actions: list[d.Action], namespace: str, nodes: list[NodeOutline], whe
     return namespace
 
 
-def _literal(text: Text, key: str, where: Location) -> str:
+def _literal(text: Text, key: str, place: Location | None, where: Location) -> str:
     value = literal(text)
     if value is None:
-        raise TemplateError(f"{key} {_written(text)!r} must be literal in a fleet template (no substitutions)", where)
+        message = f"{key} {_written(text)!r} must be literal in a fleet template (no substitutions)"
+        raise _refused(message, place, where)
     return value
+
+
+def _refused(problem: str, place: Location | None, where: Location) -> TemplateError:
+    """A problem of the rendered launch file, told at the template (`where`) with its line and
+    column in the rendered output (`place`), which is what the reader knows."""
+    at = f"line {place.line}, column {place.column} of its output: " if place and place.line else ""
+    return TemplateError(f"rendered launch file refused: {at}{problem}", where)

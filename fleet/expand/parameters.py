@@ -15,7 +15,7 @@ from functools import partial
 from typing import Any
 
 from fleet.errors import Location, SpecError
-from fleet.rules import node_key_problem, ros_name_problem
+from fleet.rules import node_key_problem, parameter_token_problem
 from fleet.spec.params import coerce_like, command_line_value, flatten, namespace_clash
 from fleet.spec.yaml_source import DocPath
 
@@ -62,7 +62,7 @@ def parse_override(text: str) -> Override:
     if problem := node_key_problem(parts[1]):
         raise SpecError(f"node name {problem}", where)
     for token in parts[2].split("."):
-        if problem := ros_name_problem(token):
+        if problem := parameter_token_problem(token):
             raise SpecError(f"parameter name {parts[2]}: {problem}", where)
     return Override(robot=parts[0], node=parts[1], parameter=parts[2], value=value, text=text)
 

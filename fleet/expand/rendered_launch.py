@@ -48,6 +48,9 @@ class RenderedLaunch:
     # file, which therefore win over every layer of the file (check_rendered_launch); each placed
     # by line and column only, in the robot's own launch file (rendered_launch_path)
     inline: dict[str, dict[str, InlineSetting]] = field(default_factory=dict)
+    # node name -> where its launch file starts it without the robot's parameter file (line and
+    # column in the robot's own launch file): none of the file's values reach it
+    without_file: dict[str, Location] = field(default_factory=dict)
 
 
 def params_file_reference(robot: str) -> str:
@@ -109,6 +112,7 @@ class LaunchRenderer:
                 }
                 for node, settings in shape.inline.items()
             },
+            without_file={_identify(node, name, namespace): where for node, where in shape.without_file.items()},
         )
 
     def _parse(
@@ -124,8 +128,9 @@ class LaunchRenderer:
             ) from None
         shape, description = outline(document, source, rendered.template_file, rendered_launch_path(robot))
         inline: dict[str, dict[str, InlineSetting]] = {}
+        without_file: dict[str, Location] = {}
         try:
-            inline = check_rendered_launch(description, robot, rendered.template_file)
+            inline, without_file = check_rendered_launch(description, robot, rendered.template_file)
             problem = None
         except LaunchFileError as error:
             problem = error
@@ -139,6 +144,7 @@ class LaunchRenderer:
             shared=tuple(rendered.shared),
             problem=problem,
             inline=inline,
+            without_file=without_file,
         )
 
 
@@ -149,16 +155,17 @@ def rendered_launch_path(robot: str) -> Path:
 
 def check_rendered_launch(
     description: d.LaunchDescription, robot: str, template_file: Path
-) -> dict[str, dict[str, InlineSetting]]:
+) -> tuple[dict[str, dict[str, InlineSetting]], dict[str, Location]]:
     """Run the robot's launch file (read as rendered_launch_path) as an agent's check would
     (check_bundle_launch: the runner's own interpreter, less what only the agent's computer can
     tell), located where `fleet render -o DIR` writes it: robot1/robot1.launch.yaml:LINE:COL.
-    Returns what each node is given inline after the robot's parameter file, placed by line and
-    column (the file is the robot's, whichever robot's copy of a shape this is)."""
+    Returns what each node is given inline after the robot's parameter file, and where each node
+    started without that file is started, placed by line and column (the file is the robot's,
+    whichever robot's copy of a shape this is)."""
     path = description.path
     files = frozenset(f"{robot}{suffix}" for suffix in (LAUNCH_SUFFIX, PYTHON_LAUNCH_SUFFIX, PARAMS_SUFFIX))
     try:
-        inline = check_bundle_launch(description, files, frozenset({f"{robot}{PARAMS_SUFFIX}"}))
+        inline, without_file = check_bundle_launch(description, files, frozenset({f"{robot}{PARAMS_SUFFIX}"}))
     except LaunchFileError as error:
         message = f"{error.message} (rendered from {template_file.name})"
         raise type(error)(message, _rendered(path, error.location)) from None
@@ -167,7 +174,11 @@ def check_rendered_launch(
             name: InlineSetting(s.value, Location(None, s.where.line, s.where.column)) for name, s in settings.items()
         }
         for node, settings in inline.items()
-    }
+    }, {node: _line_of(where) for node, where in without_file.items()}
+
+
+def _line_of(where: Location | None) -> Location:
+    return Location(None, where.line, where.column) if where is not None else Location(None)
 
 
 def _rendered(path: Path, place: Location | None) -> Location:

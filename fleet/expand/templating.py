@@ -96,7 +96,7 @@ def argument_problem(value: Any, default: Any) -> str | None:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             return None
         return f"is a number (its default is {default!r}), got {value!r}"
-    return None  # text, or declared by the template without arg(): any value is written as text
+    return None  # text: any value is written as text
 
 
 class _TooCostly(jinja2.exceptions.SecurityError):

@@ -228,7 +228,8 @@ class Unit:
         params_files = frozenset(name for name in self.bundle.files if name.endswith(PARAMS_SUFFIX))
         try:
             description = read_launch_file(self.directory / self.bundle.entry)
-            return check_bundle_launch(description, frozenset(self.bundle.files), params_files).get(node, {}).get(name)
+            inline, _ = check_bundle_launch(description, frozenset(self.bundle.files), params_files)
+            return inline.get(node, {}).get(name)
         except FleetError:  # a file it could not read: it runs no launch file of ours to ask
             return None
 

@@ -17,6 +17,7 @@ from fleet.rules import (
     key_name_problem,
     namespace_problem,
     node_key_problem,
+    parameter_token_problem,
     ros_name_problem,
     template_name_problem,
 )
@@ -169,9 +170,12 @@ def check_parameters(parameters: dict[str, dict[str, Any]], path: DocPath, sourc
                         source.locate((*path, node, *key_path), key=True),
                     )
             for token in name.split("."):
-                if problem := ros_name_problem(token):
+                if problem := parameter_token_problem(token):
+                    # at the key that holds the token (`ros__parameters:` above the parameters)
+                    depth = next(i for i, key in enumerate(key_path, 1) if token in key.split("."))
                     raise SpecError(
-                        f"parameter name {node}.{name}: {problem}", source.locate((*path, node, *key_path), key=True)
+                        f"parameter name {node}.{name}: {problem}",
+                        source.locate((*path, node, *key_path[:depth]), key=True),
                     )
             if problem := value_problem(value):
                 raise SpecError(f"parameter {node}.{name}: {problem}", source.locate((*path, node, *key_path)))

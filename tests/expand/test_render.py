@@ -363,3 +363,59 @@ def test_deploy_dry_run_sends_nothing(tmp_path, capsys, monkeypatch):
     data = json.loads(capsys.readouterr().out)
     assert data["robots"][0]["parameters"]["controller"]["max_speed"] == {"value": 0.7, "from": "--set"}
     assert not (tmp_path / "state").exists()
+
+
+def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained_as_not_given(tmp_path, capsys):
+    """launch gives a node only the parameter files its `param` list names: a node the template
+    starts without `from: {{ params_file }}` gets none of the values fleet writes for it, so render
+    says so once per node, and --explain shows no layer as effective (it said the robot's was)."""
+    from fleet.cli.plan_view import explain_data
+    from fleet.runtime.launch_file import load_launch_file
+    from tests.runtime.runtime_helpers import FakePrefix
+
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    (templates / "scout.launch.yaml.j2").write_text(
+        textwrap.dedent("""\
+        launch:
+        - group:
+          - push_ros_namespace: {namespace: {{ robot.namespace }}}
+          - node: {pkg: fleet_nodes, exec: controller, name: controller}
+          - node: {pkg: fleet_nodes, exec: battery, name: battery, param: [{from: {{ params_file }}}]}
+        """)
+    )
+    (templates / "scout.params.yaml").write_text("controller: {max_speed: 0.3}\nbattery: {capacity: 80.0}\n")
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text(
+        "fleet: t\ntemplates: templates\ndefaults: {template: scout}\nrobots:\n"
+        "- {name: a, parameters: {controller: {max_speed: 0.6}}}\n- {name: b}\n"
+    )
+    expansion = expand_fleet(parse_spec(spec.read_text(), str(spec)))
+    assert expansion.warnings == [
+        "a/a.launch.yaml:4:5: node controller is started without the robot's parameter file, so none of its "
+        "parameters there reach it (max_speed); add `- from: {{ params_file }}` to its param list in template "
+        "scout (and 1 more place)"
+    ]
+    explained = explain_data(expansion, "a.controller.max_speed")
+    assert explained["value"] is None
+    assert [(layer["layer"], layer["value"], layer["effective"]) for layer in explained["layers"]] == [
+        ("template", 0.3, False),
+        ("robot", 0.6, False),
+        ("launch file", None, True),
+    ]
+    assert explained["layers"][-1]["source"] == "a/a.launch.yaml:4:5"
+    # A node given the file is explained as before, and a name no layer has is still refused.
+    assert explain_data(expansion, "a.battery.capacity")["value"] == 80.0
+    assert run_fleet(["render", str(spec), "--explain", "a.controller.nosuch"]) == 2
+    assert run_fleet(["render", str(spec), "--explain", "a.controller.max_speed"]) == 0
+    assert "a.controller.max_speed = (the node's own default)" in capsys.readouterr().out
+
+    # What the warning says is what the runner does: the controller's command line has no file.
+    out = render_to(tmp_path, spec)
+    prefix = FakePrefix(tmp_path / "prefix")
+    for exe in ("controller", "battery"):
+        prefix.add(exe, "#!/bin/sh\nexec sleep 100\n", package="fleet_nodes")
+    plan = load_launch_file(out / "a" / "a.launch.yaml", env=prefix.env(), params_dir=tmp_path / "params")
+    commands = {node.name: node.cmd for node in plan.nodes}
+    assert "--params-file" not in commands["controller"]
+    assert str(out / "a" / "a.params.yaml") in commands["battery"]

@@ -10,6 +10,8 @@ from pathlib import Path
 import pytest
 
 from fleet.cli import main
+from fleet.expand import expand_fleet
+from fleet.spec import parse_spec
 
 GOOD = """\
 fleet: demo
@@ -142,6 +144,13 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             [":7:11:", "robot 'r3'", "agent 'local' holds at most 2 robots", "agents.local.max_robots", "places 3"],
         ),
         ("fleet: demo\nfleet: other\nrobots: [{name: r1}]\n", [":2:1:", "duplicate key 'fleet'"]),
+        # Parameters written as a ROS parameter file writes them: rcl would read the parameter
+        # `ros__parameters.max_speed`, and the node keep its own max_speed.
+        (
+            "fleet: demo\nrobots:\n  - name: r1\n    parameters:\n      controller:\n"
+            "        ros__parameters: {max_speed: 0.5}\n",
+            [":6:9:", "controller.ros__parameters.max_speed", "right under the node"],
+        ),
     ],
 )
 def test_bad_spec(tmp_path, capsys, spec_text, expected):
@@ -159,6 +168,7 @@ def test_bad_spec(tmp_path, capsys, spec_text, expected):
         ("robot1.controller.max_speed", "expected ROBOT.NODE.PARAMETER=VALUE"),
         ("robot1.controller.max_speed=[[1]]", "nested lists"),
         ("robot1.controller.max_speed=fast", "is float in the template layer"),
+        ("robot1.controller.ros__parameters.max_speed=0.8", "'ros__parameters' is fleet's to write"),
     ],
 )
 def test_bad_set(tmp_path, capsys, override, expected):
@@ -172,6 +182,102 @@ def write_templates(tmp_path: Path, body: str) -> Path:
     templates.mkdir()
     (templates / "custom.launch.yaml.j2").write_text(body)
     return templates
+
+
+def test_template_defaults_in_the_ros_parameter_file_form_are_refused_at_their_key(tmp_path, capsys):
+    """A `.params.yaml` copied from a ROS parameter file (`controller: {ros__parameters: {...}}`):
+    every default would reach the node as `ros__parameters.<name>` (rcl checked), so none would
+    count; refused at the `ros__parameters` key, not warned about at the spec's values."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: controller, param: [{from: {{ params_file }}}]}\n",
+    )
+    (templates / "custom.params.yaml").write_text("controller:\n  ros__parameters:\n    max_speed: 0.3\n")
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\n"
+        "robots: [{name: r1, parameters: {controller: {max_speed: 0.5}}}]\n",
+    )
+    assert line.startswith(f"fleet: error: {templates / 'custom.params.yaml'}:2:3: parameter name ")
+    assert line.endswith("'ros__parameters' is fleet's to write: give them right under the node (controller: {x: 1.0})")
+
+
+@pytest.mark.parametrize(
+    "defaults, place, got",
+    [
+        ("controller: {max_speed: 0.3}\nbattery:\n", ":2:1:", "got nothing"),  # was placed at line 1
+        ("controller: {max_speed: 0.3}\nbattery: [1.0]\n", ":2:10:", "got a list"),
+    ],
+)
+def test_template_defaults_of_a_node_that_are_no_mapping_are_placed_at_the_node(tmp_path, capsys, defaults, place, got):
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: controller, param: [{from: {{ params_file }}}]}\n"
+        "  - node: {pkg: a, exec: c, name: battery, param: [{from: {{ params_file }}}]}\n",
+    )
+    (templates / "custom.params.yaml").write_text(defaults)
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert line == (
+        f"fleet: error: {templates / 'custom.params.yaml'}{place} parameter defaults of node battery: "
+        f"expected a mapping of parameters (write {{}} for none), {got}"
+    )
+
+
+@pytest.mark.parametrize(
+    "node, problem",
+    [
+        ("{pkg: a, exec: b}", "node is missing 'name'"),
+        ("{pkg: a, exec: b, name: $(var who)}", "name '$(var who)' must be literal in a fleet template"),
+    ],
+)
+def test_a_node_fleet_cannot_outline_is_placed_at_its_line_of_the_output(tmp_path, capsys, node, problem):
+    """As the reader's own refusals are (the template's line is not known after rendering): the
+    message had no place at all."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- arg: {name: who, default: c}\n- group:\n"
+        "  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        f"  - node: {node}\n",
+    )
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert line.startswith(
+        f"fleet: error: {templates / 'custom.launch.yaml.j2'}: rendered launch file refused: "
+        f"line 5, column 5 of its output: {problem}"
+    ), line
+
+
+def test_a_launch_argument_the_template_declares_without_arg_takes_no_value(tmp_path, capsys):
+    """A value reaches a robot only through arg(), which writes it as the rendered file's default
+    (agents pass no launch arguments): given for one the launch file declares as plain YAML, it was
+    accepted and silently dropped (the node ran as the default said). One read through arg() but
+    not declared as `- arg:` takes its value."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- arg: {name: lasers, default: 'true'}\n- group:\n"
+        "  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: c, if: $(var lasers), args: {{ arg('rate', 5) }}}\n",
+    )
+    spec = "fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots:\n- name: r1\n"
+    spec += "  launch_args: {{{args}}}\n"
+    line = render_bad(tmp_path, capsys, spec.format(templates=templates, args="lasers: false"))
+    assert line == (
+        f"fleet: error: {tmp_path / 'fleet.yaml'}:6:17: template 'custom' declares launch argument 'lasers' without "
+        """arg(), so no value reaches it (write its default as {{ arg("lasers", ...) }})"""
+    )
+    (tmp_path / "fleet.yaml").write_text(spec.format(templates=templates, args="rate: 7"))
+    expansion = expand_fleet(parse_spec((tmp_path / "fleet.yaml").read_text(), str(tmp_path / "fleet.yaml")))
+    assert 'args: "7"}' in expansion.robots[0].launch_text
 
 
 def test_template_syntax_error_names_template_line(tmp_path, capsys):
