@@ -17,6 +17,20 @@ LINEAR, ANGULAR, WALL, SIM = range(4)
 NEVER = -math.inf  # the receive time of a command that never came
 
 
+# A battery reading older than this (wall seconds) is no reading: the robot's battery node was
+# removed (`enable_battery: false`) or stopped.  Its slowest rate is 0.1 Hz of the node's clock, a
+# 10 s period, 20 s at half real time: a reading is not stale before two such periods have passed.
+BATTERY_STALE = 45.0
+
+
+def fresh_battery(readings: list[tuple[float, float]], now: float) -> np.ndarray:
+    """(percentage, time.monotonic() when received) of every row -> the percentages, nan for a
+    row with no reading or a stale one."""
+    values = np.array([value for value, _ in readings], dtype=float)
+    received = np.array([at for _, at in readings], dtype=float)
+    return np.where(now - received <= BATTERY_STALE, values, math.nan)
+
+
 @dataclass(frozen=True)
 class RobotInputs:
     """The latest inputs of every robot of one layout (`generation`), by row."""

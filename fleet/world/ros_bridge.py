@@ -35,7 +35,7 @@ from visualization_msgs.msg import MarkerArray
 from fleet.world import markers
 from fleet.world.description import ObstacleSpec, RobotSpec
 from fleet.world.frames import Field, SerializedFrames
-from fleet.world.inputs import NEVER, RobotInputs
+from fleet.world.inputs import NEVER, RobotInputs, fresh_battery
 
 # Best-effort subscriptions match both reliable and best-effort publishers; reliable publishers
 # match both kinds of subscribers (RViz, Nav2's sensor-data QoS, ros2 topic echo).
@@ -63,7 +63,7 @@ class RobotChannel:
         self.node = node
         ns = spec.namespace.rstrip("/")
         self.command = Command()
-        self.battery = math.nan
+        self.battery = (math.nan, NEVER)  # percentage, time.monotonic() when received
         self._sim_now = clock_source
         self.odom_pub = node.create_publisher(Odometry, f"{ns}/odom", _PUB_QOS)
         self.scan_pub = node.create_publisher(LaserScan, f"{ns}/scan", _PUB_QOS)
@@ -79,7 +79,7 @@ class RobotChannel:
         self.command = Command(msg.linear.x, msg.angular.z, time.monotonic(), self._sim_now())
 
     def _on_battery(self, msg: BatteryState) -> None:
-        self.battery = float(msg.percentage)
+        self.battery = (float(msg.percentage), time.monotonic())
 
     def destroy(self) -> None:
         for entity in (self.odom_pub, self.scan_pub, self.truth_pub, self.markers_pub):
@@ -255,7 +255,7 @@ class RosBridge:
             self._subscribers = np.array([c.odom_pub.get_subscription_count() for c in rows], dtype=np.int64)
             self._subscribers_at = now
         commands = np.array([c.command for c in rows], dtype=float).reshape(-1, 4)
-        battery = np.array([c.battery for c in rows], dtype=float)
+        battery = fresh_battery([c.battery for c in rows], now)
         return RobotInputs(self.generation, commands, battery, self._subscribers)
 
     def hold(self, commands: np.ndarray) -> None:

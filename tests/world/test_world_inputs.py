@@ -27,3 +27,16 @@ def test_inputs_of_another_layout_are_not_mixed_in():
     stale.battery[:] = [50.0, 60.0]
     fresh = stale.remapped(["a", "b", "c"], ["a"], generation=3)
     assert len(fresh) == 1 and np.isnan(fresh.battery[0])
+
+
+def test_a_battery_reading_goes_stale_once_its_node_is_gone():
+    """A robot whose battery node was removed (`enable_battery: false`) shows no battery once its
+    last reading is older than BATTERY_STALE, instead of that reading forever."""
+    from fleet.world.inputs import BATTERY_STALE, NEVER, fresh_battery
+
+    now = 1000.0
+    readings = [(50.0, now - 1.0), (80.0, now - BATTERY_STALE - 0.5), (float("nan"), NEVER), (20.0, now)]
+    got = fresh_battery(readings, now)
+    assert got[0] == 50.0 and got[3] == 20.0
+    assert np.isnan(got[1]) and np.isnan(got[2])
+    assert fresh_battery([], now).shape == (0,)
