@@ -83,7 +83,7 @@ def deploy(
     dry_run: bool = typer.Option(False, "--dry-run", help="Only show what would be deployed; send nothing."),
 ) -> None:
     """Send each agent its robots' launch descriptions, wait until they run, show the status."""
-    from fleet.cli.output import console, print_json
+    from fleet.cli.output import console, print_json, print_warnings
     from fleet.cli.render_cmd import load_and_expand
     from fleet.client import deploy as deploy_fleet
     from fleet.client.local_daemon import connect_or_start
@@ -95,12 +95,7 @@ def deploy(
 
         print_json(plan_data(expansion)) if json else print_plan(expansion, console())
         return
-    if expansion.warnings:  # on stderr, as kubectl's: `--json` keeps stdout a document
-        from fleet.cli.output import labelled
-
-        errors = console(stderr=True)
-        for warning in expansion.warnings:
-            errors.print(labelled("warning:", "yellow", warning))
+    print_warnings(expansion.warnings)
     agents = {bundle.agent for bundle in expansion.bundles}
     with connect_or_start(connect, zenoh_config, agents, lambda line: typer.echo(line, err=True)) as control:
         progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())
@@ -233,12 +228,13 @@ def diff(
     """Show what `fleet deploy SPEC` would change, robot by robot."""
     from dataclasses import asdict
 
-    from fleet.cli.output import console, print_json
+    from fleet.cli.output import console, print_json, print_warnings
     from fleet.cli.render_cmd import load_and_expand
     from fleet.plan import build_view, discovery_for
     from fleet.plan import diff as plan_diff
 
     expansion = load_and_expand(spec, set_)
+    print_warnings(expansion.warnings)
     with client(connect, zenoh_config) as control:
         statuses, registries = control.status(expansion.fleet)
         deployed = {

@@ -15,6 +15,15 @@ def print_error(error: FleetError | str) -> None:
     sys.stderr.flush()
 
 
+def print_warnings(warnings: list[str]) -> None:
+    """A spec's warnings, one `warning:` line each, on stderr: a command's output (a JSON
+    document, a table) stays what it is on stdout, as kubectl's warnings do."""
+    if warnings:
+        errors = console(stderr=True)
+        for warning in warnings:
+            errors.print(labelled("warning:", "yellow", warning))
+
+
 def print_json(data: Any) -> None:
     sys.stdout.write(json_text(data) + "\n")
 

@@ -47,7 +47,7 @@ def render(
 
     Files fleet did not write are kept; a non-empty DIR without that list is refused.
     """
-    from fleet.cli.output import console, labelled, print_json
+    from fleet.cli.output import console, print_json, print_warnings
     from fleet.cli.plan_view import explain_data, plan_data, print_explain, print_plan
 
     if output is not None:
@@ -62,13 +62,11 @@ def render(
             print_json(plan_data(expansion)) if json else print_plan(expansion, console())
         return
     written = write_bundles(expansion, output, format.value)
+    print_warnings(expansion.warnings)
     if json:
         print_json({"output": str(output), "files": [str(path) for path in written]})
     else:
-        out = console()
-        for warning in expansion.warnings:
-            out.print(labelled("warning:", "yellow", warning))
-        out.print(
+        console().print(
             f"wrote {len(written)} files for {len(expansion.robots)} robots"
             + (" and the world" if expansion.bundle("world") else "")
             + f" to {output}/"

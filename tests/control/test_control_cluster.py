@@ -110,6 +110,10 @@ def test_changing_one_robot_restarts_only_it(cluster):
     assert rows["robot2"]["parameters"] == [period] and rows["robot2"]["detail"] == "sleeper.period 1.0 -> 2.0"
     table = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--connect", cluster.endpoint)
     assert "sleeper.period 1.0 -> 2.0" in table.stdout, table.stdout
+    # The spec's warnings, as render and deploy give them (on stderr: stdout stays the JSON).
+    typo = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.perod=2.0", "--json", "--connect", cluster.endpoint)
+    assert typo.returncode == 0 and json.loads(typo.stdout), typo.stderr
+    assert "warning: --set robot2.sleeper.perod=2.0: sleeper.perod is not a parameter" in typo.stderr, typo.stderr
 
     deployed = {row.name: row.deployed_generation for row in cluster.view("tiny").robots}
     outcome = cluster.deploy(spec, sets=["robot2.sleeper.period=2.0"])

@@ -183,7 +183,7 @@ def test_a_value_the_launch_file_gives_inline_wins_over_the_parameter_file_as_ex
     sets = ["--set", "robot1.controller.use_sim_time=false"]
     out = tmp_path / "out"
     assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "-o", str(out), *sets]) == 0
-    warning = capsys.readouterr().out
+    warning = capsys.readouterr().err
     assert "--set robot1.controller.use_sim_time=false: controller.use_sim_time is not used" in warning
     assert "(robot1/robot1.launch.yaml:24:9: true), and that value wins" in warning
     assert "not a parameter of the template" not in warning  # the launch file knows the name
