@@ -225,7 +225,7 @@ class Unit:
     def given_inline(self, node: str, name: str) -> InlineSetting | None:
         """The value the unit's launch file gives `node`'s parameter `name` inline after its
         parameter file, which wins over the file whenever the node starts; None if it gives none."""
-        params_files = frozenset(name for name in self.bundle.files if name.endswith(PARAMS_SUFFIX))
+        params_files = frozenset(file for file in self.bundle.files if file.endswith(PARAMS_SUFFIX))
         try:
             description = read_launch_file(self.directory / self.bundle.entry)
             inline, _ = check_bundle_launch(description, frozenset(self.bundle.files), params_files)
