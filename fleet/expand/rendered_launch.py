@@ -170,14 +170,14 @@ def check_rendered_launch(
         message = f"{error.message} (rendered from {template_file.name})"
         raise type(error)(message, _rendered(path, error.location)) from None
     return {
-        node: {
-            name: InlineSetting(s.value, Location(None, s.where.line, s.where.column)) for name, s in settings.items()
-        }
+        node: {name: InlineSetting(s.value, _line_of(s.where)) for name, s in settings.items()}
         for node, settings in inline.items()
     }, {node: _line_of(where) for node, where in without_file.items()}
 
 
 def _line_of(where: Location | None) -> Location:
+    """Only the line and column of a place in the robot's launch file: each robot's copy of a
+    shape names its own file (RobotPlan.launch_place)."""
     return Location(None, where.line, where.column) if where is not None else Location(None)
 
 

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fleet import __version__
+from fleet.errors import Location
 from fleet.files import write_atomic
 from fleet.rules import hosts_dir, services_dir
 from fleet.runtime.processes import stop_all
@@ -832,7 +833,7 @@ class Agent:
             if request.op == "set" and reply.ok:
                 if inline := unit.given_inline(nodes[fqn], request.name):
                     # Its parameter file would not bring the value back: the launch file's wins.
-                    where = f"{Path(str(inline.where.file)).name}:{inline.where.line}:{inline.where.column}"
+                    where = Location(Path(str(inline.where.file)).name, inline.where.line, inline.where.column)
                     reply.note = (
                         f"set live only: the launch file gives {request.name} inline after the parameter file "
                         f"({where}: {value_text(inline.value)}), so a restart brings that value back"
