@@ -71,18 +71,21 @@ class RobotPlan:
     launch_text: str  # the rendered .launch.yaml
     launch_python: str  # the same as a Python launch file
     shared: tuple[SharedTopic, ...] = ()  # topics its template shares (share(...))
-    # node -> the parameters its launch file gives it inline after its parameter file: they win
+    # node -> the parameters its launch file gives it inline after its parameter file, or at all
+    # when it starts the node without the file: they win
     inline: dict[str, dict[str, InlineSetting]] = field(default_factory=dict)
     # node -> where its launch file starts it without the robot's parameter file: it gets none of it
     without_file: dict[str, Location] = field(default_factory=dict)
 
     def inline_setting(self, node: str, name: str) -> Setting | None:
         """The launch file's own value of a node's parameter, which wins over every layer; None
-        as the value of a node started without the parameter file: it keeps its own default."""
+        as the value of a node started without the parameter file that the launch file does not
+        give it either: it keeps its own default."""
+        if found := self.inline.get(node, {}).get(name):
+            return Setting(found.value, INLINE_LAYER, str(self.launch_place(found.where)))
         if node in self.without_file and (node, name) in self.parameters.history:
             return Setting(None, INLINE_LAYER, str(self.launch_place(self.without_file[node])))
-        found = self.inline.get(node, {}).get(name)
-        return None if found is None else Setting(found.value, INLINE_LAYER, str(self.launch_place(found.where)))
+        return None
 
     def launch_place(self, where: Location) -> Location:
         return Location(rendered_launch_path(self.name), where.line, where.column)
@@ -194,6 +197,8 @@ def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:
     never gets the spec's value (the template's own defaults are its author's to keep apart)."""
     warnings = {}
     for node, settings in plan.inline.items():
+        if node in plan.without_file:  # none of its file reaches it: one warning for the node
+            continue
         for name, inline in settings.items():
             history = plan.parameters.history.get((node, name))
             if history and history[-1].layer != "template":

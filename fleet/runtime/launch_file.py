@@ -730,31 +730,35 @@ def check_bundle_launch(
     packages, executables, environment variables, included files and files outside the bundle are
     there.  Raises LaunchFileError, located in `description.path`.
 
-    Returns, for each node (by name) given one of the bundle's `params_files`, the parameters it
-    is given inline after that file: they win over the file's values (later parameter files win);
-    and each node (by name) it starts without any of them, with where it starts it: none of the
-    files' values reach such a node (its process reads only the files it is given)."""
+    Returns, for each node (by name), the parameters it is given inline that the robot's
+    parameter file cannot change: those after one of the bundle's `params_files` (later parameter
+    files win), or all of them for a node started without any; and each node (by name) it starts
+    without any of them, with where it starts it: none of the files' values reach such a node (its
+    process reads only the files it is given)."""
     directory = description.path.parent
     interpreter = _Interpreter({}, {}, "", bundle=(directory, files))
     interpreter.run(description)
-    after_file: dict[str, dict[str, InlineSetting]] = {}
+    inline_wins: dict[str, dict[str, InlineSetting]] = {}
     without_file: dict[str, Location | None] = {}
     if not params_files:
-        return after_file, without_file
+        return inline_wins, without_file
     paths = {os.path.abspath(directory / name) for name in params_files}
     for draft in interpreter.drafts:
         if draft.launch.name is None:  # a plain executable, or a node no parameter file section can name
             continue
         read_file = False
+        given: dict[str, InlineSetting] = {}  # inline since the last of the files, or since the start
         for param in draft.params:
             if param[0] == "file" and param[1] in paths:
                 read_file = True
-            elif param[0] == "inline" and read_file:
-                found = after_file.setdefault(draft.launch.name, {})
-                found.update({name: InlineSetting(value, param[3]) for name, value in param[2].items()})
+                given = {}
+            elif param[0] == "inline":
+                given.update({name: InlineSetting(value, param[3]) for name, value in param[2].items()})
+        if given:
+            inline_wins.setdefault(draft.launch.name, {}).update(given)
         if not read_file:
             without_file[draft.launch.name] = draft.launch.location
-    return after_file, without_file
+    return inline_wins, without_file
 
 
 def check_launch_file(

@@ -37,7 +37,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fleet import __version__
-from fleet.errors import Location
 from fleet.files import write_atomic
 from fleet.rules import hosts_dir, services_dir
 from fleet.runtime.processes import stop_all
@@ -46,7 +45,6 @@ from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
 from fleet.server.units import UNIT_MARKER, Unit
 from fleet.spec.model import DEFAULT_GROUP_SIZE
-from fleet.spec.rcl_types import value_text
 from fleet.wire import protocol as p
 from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
 
@@ -831,13 +829,8 @@ class Agent:
             if not reply.ok and reply.code in p.INPUT_ERRORS:  # a name the node does not have: the asker's input
                 raise p.ProtocolError(reply.reason, reply.code)
             if request.op == "set" and reply.ok:
-                if inline := unit.given_inline(nodes[fqn], request.name):
-                    # Its parameter file would not bring the value back: the launch file's wins.
-                    where = Location(Path(str(inline.where.file)).name, inline.where.line, inline.where.column)
-                    reply.note = (
-                        f"set live only: the launch file gives {request.name} inline after the parameter file "
-                        f"({where}: {value_text(inline.value)}), so a restart brings that value back"
-                    )
+                if why := unit.not_kept_by_file(nodes[fqn], request.name):
+                    reply.note = f"set live only: {why}"
                 else:
                     self._record_override(request, fqn, reply.value)
         yield p.param_key(request.fleet, self.name), p.encode(reply)

@@ -13,12 +13,13 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fleet.errors import FleetError, SpecError
+from fleet.errors import FleetError, Location, SpecError
 from fleet.files import write_atomic
 from fleet.launchfile.reader import read_launch_file
 from fleet.rules import PARAMS_SUFFIX, WORLD_STATUS_FILE, unit_log_dir
-from fleet.runtime.launch_file import InlineSetting, check_bundle_launch
+from fleet.runtime.launch_file import check_bundle_launch
 from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, LaunchSession, NodeStatus
+from fleet.spec.rcl_types import value_text
 from fleet.spec.yaml_source import safe_load
 from fleet.wire.protocol import (
     BundleMessage,
@@ -222,16 +223,28 @@ class Unit:
             summary.age = round(max(0.0, time.time() - wall_time), 2)
         return summary
 
-    def given_inline(self, node: str, name: str) -> InlineSetting | None:
-        """The value the unit's launch file gives `node`'s parameter `name` inline after its
-        parameter file, which wins over the file whenever the node starts; None if it gives none."""
+    def not_kept_by_file(self, node: str, name: str) -> str | None:
+        """Why a value set live on `node`'s parameter `name` would not come back from the robot's
+        parameter file when the node restarts: the launch file gives the parameter inline after the
+        file, or starts the node without the file.  None when it would come back."""
         params_files = frozenset(file for file in self.bundle.files if file.endswith(PARAMS_SUFFIX))
         try:
             description = read_launch_file(self.directory / self.bundle.entry)
-            inline, _ = check_bundle_launch(description, frozenset(self.bundle.files), params_files)
-            return inline.get(node, {}).get(name)
+            inline, without_file = check_bundle_launch(description, frozenset(self.bundle.files), params_files)
         except FleetError:  # a file it could not read: it runs no launch file of ours to ask
             return None
+        if found := inline.get(node, {}).get(name):
+            where = " after the parameter file" if node not in without_file else ""
+            return (
+                f"the launch file gives {name} inline{where} ({_file_place(found.where)}: "
+                f"{value_text(found.value)}), so a restart brings that value back"
+            )
+        if node in without_file:
+            return (
+                f"the launch file starts {node} without the robot's parameter file "
+                f"({_file_place(without_file[node])}), so a restart brings the node's own default back"
+            )
+        return None
 
     def node_names(self) -> list[str]:
         return [state.name for state in self.node_states()]
@@ -305,3 +318,10 @@ def _dump_params(data: dict) -> str:
     from fleet.expand import yaml_emit
 
     return header + yaml_emit.emit(data)
+
+
+def _file_place(where: Location | None) -> str:
+    """A place in a unit's launch file, by the file's name (the agent's directory is its own)."""
+    if where is None:
+        return "its launch file"
+    return str(Location(Path(str(where.file)).name, where.line, where.column))

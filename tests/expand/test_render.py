@@ -382,6 +382,7 @@ def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained
           - push_ros_namespace: {namespace: {{ robot.namespace }}}
           - node: {pkg: fleet_nodes, exec: controller, name: controller}
           - node: {pkg: fleet_nodes, exec: battery, name: battery, param: [{from: {{ params_file }}}]}
+          - node: {pkg: fleet_nodes, exec: safety, name: safety, param: [{name: stop_distance, value: 0.4}]}
         """)
     )
     (templates / "scout.params.yaml").write_text("controller: {max_speed: 0.3}\nbattery: {capacity: 80.0}\n")
@@ -404,6 +405,12 @@ def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained
         ("launch file", None, True),
     ]
     assert explained["layers"][-1]["source"] == "a/a.launch.yaml:4:5"
+    # What the launch file gives such a node inline is what it gets (it said "in no layer").
+    inline = explain_data(expansion, "a.safety.stop_distance")
+    assert inline["value"] == 0.4
+    assert [(layer["layer"], layer["source"], layer["effective"]) for layer in inline["layers"]] == [
+        ("launch file", "a/a.launch.yaml:6:66", True)
+    ]
     # A node given the file is explained as before, and a name no layer has is still refused.
     assert explain_data(expansion, "a.battery.capacity")["value"] == 80.0
     assert run_fleet(["render", str(spec), "--explain", "a.controller.nosuch"]) == 2
@@ -413,7 +420,7 @@ def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained
     # What the warning says is what the runner does: the controller's command line has no file.
     out = render_to(tmp_path, spec)
     prefix = FakePrefix(tmp_path / "prefix")
-    for exe in ("controller", "battery"):
+    for exe in ("controller", "battery", "safety"):
         prefix.add(exe, "#!/bin/sh\nexec sleep 100\n", package="fleet_nodes")
     plan = load_launch_file(out / "a" / "a.launch.yaml", env=prefix.env(), params_dir=tmp_path / "params")
     commands = {node.name: node.cmd for node in plan.nodes}
