@@ -187,8 +187,21 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
         bundles.append(_world_bundle(spec, templates))
     bridge = _bridge_routes(spec, bundles, robots)
     _check_deliverable(spec, bundles, bridge)
-    warnings = sorted(_once(found) for found in unknown.values())
+    warnings = sorted(_once(found) for found in unknown.values()) + _misnamed_defaults(templates, robots)
     return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=warnings)
+
+
+def _misnamed_defaults(templates: TemplateSet, robots: list[RobotPlan]) -> list[str]:
+    """A warning for each template the robots use whose parameter defaults look misnamed: without
+    them its nodes get no defaults and the spec's parameter names are checked against nothing."""
+    warnings = []
+    for template in sorted({plan.template for plan in robots}):
+        if found := templates.misnamed_defaults(template):
+            warnings.append(
+                f"{found}: not read as template {template}'s parameter defaults, which must be named "
+                f"{template}{PARAMS_SUFFIX}; it has none"
+            )
+    return warnings
 
 
 def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:

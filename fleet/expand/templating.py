@@ -15,6 +15,7 @@ MAX_RENDER_SECONDS (on the main thread, where the CLI renders: the timer is a si
 from __future__ import annotations
 
 import functools
+import glob
 import importlib.resources
 import json
 import math
@@ -257,6 +258,21 @@ class TemplateSet:
             return None
         candidate = template.with_name(f"{name}{DEFAULTS_SUFFIX}")
         return candidate if candidate.is_file() else None
+
+    def misnamed_defaults(self, name: str) -> Path | None:
+        """A file beside template `name`, without its parameter defaults, that looks meant as them
+        but is not read (`dd.params.yml`, `dd.param.yaml`, `dd_params.yaml`, `dd.yaml`): only
+        `<name>.params.yaml` is.  Another template's defaults (`dd_2.params.yaml`) are not one."""
+        template = self.find(name)
+        if template is None or self.defaults_file(name) is not None:
+            return None
+        for path in sorted(template.parent.glob(f"{glob.escape(name)}?*")):
+            rest = path.name[len(name) :].lower()
+            if path.name.endswith(DEFAULTS_SUFFIX) or not rest.endswith((".yaml", ".yml")) or rest[0] not in "._-":
+                continue
+            if rest in (".yaml", ".yml") or "param" in rest:
+                return path
+        return None
 
     def render(
         self, name: str, context: dict[str, Any], arguments: dict[str, Any], where: Location

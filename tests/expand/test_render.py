@@ -7,6 +7,7 @@ import json
 import textwrap
 from pathlib import Path
 
+import pytest
 import yaml
 
 from fleet.expand import expand_fleet
@@ -426,3 +427,29 @@ def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained
     commands = {node.name: node.cmd for node in plan.nodes}
     assert "--params-file" not in commands["controller"]
     assert str(out / "a" / "a.params.yaml") in commands["battery"]
+
+
+@pytest.mark.parametrize("misnamed", ["scout.params.yml", "scout.param.yaml", "scout_params.yaml", "scout.yaml"])
+def test_a_template_whose_defaults_look_misnamed_is_warned_about(tmp_path, misnamed):
+    """Only `<template>.params.yaml` holds a template's defaults: under another name they are not
+    read, so its nodes get none and no parameter name is checked.  Render says so, naming the
+    file; another template's defaults and a template without any say nothing."""
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    for name in ("scout", "scout_2"):
+        (templates / f"{name}.launch.yaml.j2").write_text(
+            "launch:\n- node: {pkg: fleet_nodes, exec: controller, name: controller, "
+            "param: [{from: {{ params_file }}}]}\n"
+        )
+    (templates / "scout_2.params.yaml").write_text("controller: {max_speed: 0.3}\n")
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text(
+        "fleet: t\ntemplates: templates\ndefaults: {template: scout}\n"
+        "robots:\n- {name: a, parameters: {controller: {max_sped: 0.6}}}\n- {name: b, template: scout_2}\n"
+    )
+    assert expand_fleet(parse_spec(spec.read_text(), str(spec))).warnings == []
+    (templates / misnamed).write_text("controller: {max_speed: 0.3}\n")
+    assert expand_fleet(parse_spec(spec.read_text(), str(spec))).warnings == [
+        f"{templates / misnamed}: not read as template scout's parameter defaults, which must be named "
+        "scout.params.yaml; it has none"
+    ]
