@@ -22,11 +22,12 @@ from fleet.errors import FleetError, LaunchFileError, Location, SpecError, Templ
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.python_launch import python_source
 from fleet.expand.shared import SharedTopic
+from fleet.expand.template_lines import source_line_of
 from fleet.expand.templating import TemplateSet
 from fleet.launchfile import description as d
 from fleet.rules import LAUNCH_SUFFIX, PARAMS_SUFFIX, PYTHON_LAUNCH_SUFFIX
 from fleet.runtime.launch_file import InlineSetting, check_bundle_launch
-from fleet.spec.yaml_source import load_yaml
+from fleet.spec.yaml_source import SourceMap, load_yaml
 
 # Valid ROS name tokens, so the placeholder rendering outlines like a real one.
 _NAME = "fleetplaceholdername7f3a"
@@ -119,14 +120,10 @@ class LaunchRenderer:
         self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location, robot: str
     ) -> RenderedLaunch:
         rendered = self.templates.render(template, context, arguments, where)
-        try:
-            document, source = load_yaml(rendered.text, rendered.template_file)
-        except SpecError as error:
-            line = f" at line {error.location.line} of its output" if error.location and error.location.line else ""
-            raise TemplateError(
-                f"rendered invalid YAML{line}: {error.message}", Location(rendered.template_file)
-            ) from None
-        shape, description = outline(document, source, rendered.template_file, rendered_launch_path(robot))
+        document, source = parse_rendered(rendered.text, rendered.template_file)
+        shape, description = outline(
+            document, source, rendered.template_file, rendered_launch_path(robot), rendered.text
+        )
         inline: dict[str, dict[str, InlineSetting]] = {}
         without_file: dict[str, Location] = {}
         try:
@@ -146,6 +143,20 @@ class LaunchRenderer:
             inline=inline,
             without_file=without_file,
         )
+
+
+def parse_rendered(text: str, template_file: Path, unit: str | None = None) -> tuple[Any, SourceMap]:
+    """A template's output read as YAML; invalid YAML is the template's error (TemplateError), at
+    the template's line that wrote the bad line when one line could have (else the output's line)."""
+    try:
+        return load_yaml(text, template_file)
+    except SpecError as error:
+        line = error.location.line if error.location else None
+        at = f" at line {line} of its output" if line else ""
+        raise TemplateError(
+            f"rendered invalid YAML{f' for {unit}' if unit else ''}{at}: {error.message}",
+            Location(template_file, source_line_of(template_file, text, line)),
+        ) from None
 
 
 def rendered_launch_path(robot: str) -> Path:

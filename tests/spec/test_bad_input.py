@@ -238,8 +238,8 @@ def test_template_defaults_of_a_node_that_are_no_mapping_are_placed_at_the_node(
     ],
 )
 def test_a_node_fleet_cannot_outline_is_placed_at_its_line_of_the_output(tmp_path, capsys, node, problem):
-    """As the reader's own refusals are (the template's line is not known after rendering): the
-    message had no place at all."""
+    """As the reader's own refusals are, and at the template's line that wrote it (the message had
+    no place at all, then only the output's)."""
     templates = write_templates(
         tmp_path,
         "launch:\n- arg: {name: who, default: c}\n- group:\n"
@@ -252,8 +252,43 @@ def test_a_node_fleet_cannot_outline_is_placed_at_its_line_of_the_output(tmp_pat
         f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
     )
     assert line.startswith(
-        f"fleet: error: {templates / 'custom.launch.yaml.j2'}: rendered launch file refused: "
+        f"fleet: error: {templates / 'custom.launch.yaml.j2'}:5: rendered launch file refused: "
         f"line 5, column 5 of its output: {problem}"
+    ), line
+
+
+@pytest.mark.parametrize(
+    "bad, place",
+    [
+        ("    output: log: screen\n", ":13"),  # one template line writes it
+        ("    name: twin\n", ""),  # two could have: only the output's line is said
+    ],
+)
+def test_a_template_rendering_invalid_yaml_is_placed_at_the_line_that_wrote_it(tmp_path, capsys, bad, place):
+    """A template's output that is not YAML is an error of the template: at the template's line
+    that wrote the bad line when only one could have (above it, a comment and lines that print
+    nothing move the output's lines away from the template's), else at the output's line."""
+    templates = write_templates(
+        tmp_path,
+        "{#- A template,\n    its comment on two lines. -#}\n"
+        "launch:\n"
+        "{% if true %}\n"
+        "- node:\n"
+        "    pkg: a\n"
+        "    exec: b\n"
+        "    name: twin\n"
+        "- node:\n"
+        "    pkg: a\n"
+        "    exec: c\n"
+        "    name: {{ robot.name }}\n" + bad + "{% endif %}\n",
+    )
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert line.startswith(
+        f"fleet: error: {templates / 'custom.launch.yaml.j2'}{place}: rendered invalid YAML at line 10 of its output: "
     ), line
 
 
