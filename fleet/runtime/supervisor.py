@@ -330,12 +330,18 @@ class LaunchSession:
                 raise FleetError(f"isolation '{self.isolation}' needs the embedded backend")
             if not self.path.is_file():
                 raise LaunchFileError("launch file not found", Location(self.path))
+            if check_only:  # what ros2 launch would refuse too (a missing executable); not what only it reads
+                with contextlib.suppress(NeedsRos2Launch):
+                    check_launch_file(
+                        self.path, self.launch_args, self.base_env, ament.ament_prefix_path(self.base_env)
+                    )
+                return []
             self.backend = "ros2"
             return [self._ros2_spec(ros2)]
         self.backend = "embedded"
         try:
             if check_only:  # the same reading, without writing the inline parameter files
-                check_launch_file(self.path, self.launch_args, self.base_env, ament.ament_prefix_path(self.base_env))
+                self._check_file()
                 return []
             self.plan = load_launch_file(
                 self.path,
@@ -349,6 +355,9 @@ class LaunchSession:
                 problem.message += " (and `ros2` is not on PATH to run it with ros2 launch)"
             raise
         return plan_processes(self.plan.nodes, self.isolation)
+
+    def _check_file(self) -> None:
+        check_launch_file(self.path, self.launch_args, self.base_env, ament.ament_prefix_path(self.base_env))
 
     def _ros2_spec(self, ros2: str) -> ProcessSpec:
         arguments = [f"{name}:={value}" for name, value in self.launch_args.items()]

@@ -428,6 +428,26 @@ def test_ros2_backend_runs_ros2_launch(prefix, write_launch, tmp_path, fake_ros2
     assert pid is not None and not pid_alive(pid)
 
 
+def test_the_check_before_ros2_launch_refuses_what_it_would_refuse_and_leaves_it_what_only_it_reads(
+    prefix, write_launch, tmp_path, fake_ros2
+):
+    """An agent with `ros2` on PATH asks, before a deploy, whether ros2 launch could start a robot:
+    a node whose executable is nowhere is refused there (it checked only that the file exists),
+    and what only ros2 launch reads (an action, a substitution the embedded runner does not run)
+    is left to it."""
+    prefix.add("sleeper", SLEEPER)
+    env = prefix.env(PATH=f"{fake_ros2}:{os.environ['PATH']}")
+
+    def check(text: str) -> None:
+        LaunchSession(write_launch(text), env=env, log_dir=tmp_path / "logs", backend="auto").check()
+
+    with pytest.raises(LaunchFileError, match="executable 'nowhere' of package 'demo' not found"):
+        check("launch: [{node: {pkg: demo, exec: nowhere}}]\n")
+    check("launch: [{node: {pkg: demo, exec: sleeper}}]\n")
+    check("launch: [{node: {pkg: demo, exec: sleeper, name: $(anon sleeper)}}, {shutdown: {}}]\n")
+    assert not (tmp_path / "logs").exists()
+
+
 def test_auto_with_robot_isolation_uses_embedded(prefix, write_launch, tmp_path, fake_ros2):
     prefix.add("sleeper", SLEEPER)
     path = write_launch("launch: [{node: {pkg: demo, exec: sleeper}}]\n")
