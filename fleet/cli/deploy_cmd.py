@@ -1,6 +1,6 @@
-"""Deploying commands: deploy, diff, down.
+"""Deploying commands: deploy, diff, down, restart.
 
-The work is fleet.client's (deploy, down) and fleet.plan's (diff); here: options and output.
+The work is fleet.client's (deploy, down, restart) and fleet.plan's (diff); here: options and output.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ def register(app: typer.Typer) -> None:
     app.command("down")(down)
     app.command("deploy")(deploy)
     app.command("diff")(diff)
+    app.command("restart")(restart)
 
 
 def down(
@@ -109,6 +110,43 @@ def deploy(
         _print_outcome(outcome, console())
     if outcome.problems:
         raise typer.Exit(EXIT_USAGE)  # the spec's templates name what is not there: bad input
+    if not outcome.ok:
+        raise typer.Exit(1)
+
+
+def restart(
+    robots: list[str] = typer.Argument(..., help="Robots to restart (or `world`)."),
+    fleet: str | None = fleet_option("Fleet of the robots, when several have them.", "-f"),
+    wait: bool = typer.Option(True, "--wait/--no-wait", help="Wait until each robot runs again."),
+    timeout: float = typer.Option(60.0, "--timeout", min=0, help="Seconds to wait for the robots to run again."),
+    connect: str | None = ConnectOption,
+    zenoh_config: Path | None = ZenohConfigOption,
+    json: bool = typer.Option(False, "--json", help="Print the outcome as JSON."),
+) -> None:
+    """Stop robots' nodes and start them again as deployed (parameters set live are kept).
+
+    Exits 1 unless every robot runs again within the timeout (with --no-wait: once asked)."""
+    from fleet.cli.output import console, labelled, print_json
+    from fleet.client import restart as restart_robots
+
+    with client(connect, zenoh_config) as control:
+        progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())
+        with progress:
+            outcome = restart_robots(control, robots, fleet, wait=wait, timeout=timeout, on_progress=progress.update)
+    if json:
+        print_json(outcome.to_json())
+    else:
+        out = console()
+        for (_fleet, name), (agent, _number) in outcome.asked.items():
+            row = outcome.rows.get((_fleet, name))
+            if not wait:
+                out.print(labelled(f"{name}:", "green", f"restart asked of agent {agent}"))
+            elif outcome.back((_fleet, name)):
+                out.print(labelled(f"{name}:", "green", f"running again on agent {agent}"))
+            else:
+                state = "not seen" if row is None else row.state + (f" ({row.reason})" if row.reason else "")
+                why = "timed out waiting" if outcome.timed_out else "waiting longer would not help"
+                out.print(labelled(f"{name}:", "red", f"{state}: {why}"))
     if not outcome.ok:
         raise typer.Exit(1)
 

@@ -132,6 +132,9 @@ class ControlClient:
             p.param_key(request.fleet, agent), request, p.ParamReply, f"agent {agent}", p.PARAM_TIMEOUT + 5
         )
 
+    def restart(self, agent: str, request: p.RestartRequest) -> p.RestartReply:
+        return self.request(p.restart_key(request.fleet, agent), request, p.RestartReply, f"agent {agent}")
+
     def world(self, fleet: str, agent: str, timeout: float = STATUS_TIMEOUT) -> p.WorldReply:
         """The full world state (trails, lidar hits, obstacles) from the agent running it."""
         return self.request(

@@ -1,4 +1,5 @@
-"""Deploy and down: send each agent its desired state (planned by fleet.plan) and follow them.
+"""Deploy, down and restart: send each agent its desired state (planned by fleet.plan), or ask
+it to start robots again, and follow them.
 
 The talking and waiting are here; they report through callbacks, so the CLI decides how it looks.
 """
@@ -11,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
-from fleet.client.robots import fleet_status
+from fleet.client.robots import fleet_status, locate_robot
 from fleet.errors import ControlError
 from fleet.plan import (
     FleetView,
@@ -242,6 +243,75 @@ def _stuck(row: RobotRow) -> bool:
     return row.state == "failed" or any(
         node.get("state") == "backoff" and node.get("restarts", 0) >= CRASH_LOOP for node in row.nodes
     )
+
+
+@dataclass
+class Restart:
+    """`fleet restart`: each robot asked for, by (fleet, name), with its agent and the number of
+    its restart there, and the robots as last seen."""
+
+    asked: dict[tuple[str, str], tuple[str, int]]
+    waited: bool = True
+    rows: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
+    timed_out: bool = False
+
+    def back(self, key: tuple[str, str]) -> bool:
+        """The robot was stopped and started again, and runs steadily."""
+        row = self.rows.get(key)
+        return row is not None and row.restarted >= self.asked[key][1] and row.state == "running" and _steady(row)
+
+    @property
+    def ok(self) -> bool:
+        return not self.waited or all(self.back(key) for key in self.asked)
+
+    def to_json(self) -> dict[str, Any]:
+        robots = []
+        for (fleet, name), (agent, number) in self.asked.items():
+            row = self.rows.get((fleet, name))
+            robots.append(
+                {
+                    "fleet": fleet,
+                    "name": name,
+                    "agent": agent,
+                    "restart": number,
+                    "back": self.back((fleet, name)),
+                    "state": row.state if row else None,
+                    "reason": row.reason if row else "",
+                }
+            )
+        return {"ok": self.ok, "waited": self.waited, "timed_out": self.timed_out, "robots": robots}
+
+
+def restart(
+    client: ControlClient,
+    robots: list[str],
+    fleet: str | None = None,
+    wait: bool = True,
+    timeout: float = 60.0,
+    on_progress: Callable[[list[RobotRow]], None] | None = None,
+) -> Restart:
+    """Ask each robot's agent to stop it and start it again as deployed; with `wait`, follow them
+    until each one is back and runs steadily, or will not by waiting (a node that keeps exiting)."""
+    located = {robot: locate_robot(client, robot, fleet) for robot in dict.fromkeys(robots)}  # all found first
+    outcome = Restart(asked={}, waited=wait)
+    for robot, (fleet_name, agent) in located.items():
+        reply = client.restart(agent, p.RestartRequest(fleet=fleet_name, robot=robot))
+        outcome.asked[(fleet_name, robot)] = (agent, reply.restart)
+    fleets = {fleet_name for fleet_name, _ in outcome.asked}
+    deadline = time.monotonic() + timeout
+    while wait:
+        view = build_view(*client.status(next(iter(fleets)) if len(fleets) == 1 else None), time.time())
+        outcome.rows = {(row.fleet, row.name): row for row in view.robots if (row.fleet, row.name) in outcome.asked}
+        if on_progress is not None:
+            on_progress(list(outcome.rows.values()))
+        restarted = [key for key, row in outcome.rows.items() if row.restarted >= outcome.asked[key][1]]
+        if all(outcome.back(key) or (key in restarted and _stuck(outcome.rows[key])) for key in outcome.asked):
+            break
+        if time.monotonic() >= deadline:
+            outcome.timed_out = True
+            break
+        time.sleep(POLL_INTERVAL)
+    return outcome
 
 
 def down(

@@ -43,6 +43,7 @@ class RobotRow:
     running: int = 0
     total: int = 0
     restarts: int = 0
+    restarted: int = 0  # `fleet restart`s of it carried out (its agent's count)
     generation: int = 0  # of the desired state its agent last reconciled it to
     deployed_generation: int = 0  # of the deploy that brought what it runs (the DEPLOYED column)
     digest: str = ""
@@ -206,6 +207,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 running=robot.running,
                 total=robot.total,
                 restarts=robot.restarts,
+                restarted=robot.restarted,
                 generation=robot.generation,
                 # An agent that does not tell (an earlier version) has it run its generation's.
                 deployed_generation=robot.deployed_generation or robot.generation,

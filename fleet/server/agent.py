@@ -97,7 +97,7 @@ class Agent:
             started_at=time.time(),
             address=address or address_towards(connect),
         )
-        self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens
+        self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens, _restarts_*
         self._fleets: dict[str, FleetState] = {}
         self._units: dict[tuple[str, str], Unit] = {}
         self._reconciled: dict[str, int] = {}
@@ -111,6 +111,9 @@ class Agent:
         self._services: dict[tuple[str, str], Any] = {}
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
         self._hosting: dict[tuple[str, str, int], Any] = {}
+        # (fleet, unit) -> `fleet restart`s asked for, and those the reconcile thread has yet to carry out
+        self._restarts_asked: dict[tuple[str, str], int] = {}
+        self._restarts_due: set[tuple[str, str]] = set()
         self._work: queue.Queue[str | None] = queue.Queue()
         self._requests = ThreadPoolExecutor(max_workers=4, thread_name_prefix="fleet-agent-req")
         # Parameter calls take seconds (an rclpy helper process): their own pool, so status and
@@ -198,6 +201,7 @@ class Agent:
             p.apply_key("*", self.name): self._handle_apply,
             p.logs_key("*", self.name): self._handle_logs,
             p.param_key("*", self.name): self._handle_param,  # on the slow pool, see _enqueue
+            p.restart_key("*", self.name): self._handle_restart,
             p.agent_status_key("*", self.name): self._handle_status,
             p.world_key("*", self.name): self._handle_world,
         }
@@ -435,6 +439,9 @@ class Agent:
             generation = state.generation
             deployed = dict(state.deployed)
             env = self._unit_env(state.request.domain_id, self._discovery_server(state))
+            asked = {name for (f, name) in self._restarts_due if f == fleet}
+            self._restarts_due -= {(fleet, name) for name in asked}
+            restarted = {name: count for (f, name), count in self._restarts_asked.items() if f == fleet}
         # A unit whose environment is not this one (the fleet's discovery server moved) restarts.
         running = {name: unit for name, unit in units.items() if name in desired and unit.session is not None}
         moved = sorted(name for name, unit in running.items() if unit.env != env)
@@ -449,7 +456,7 @@ class Agent:
         changes = plan_changes(
             {name: unit.bundle for name, unit in units.items()},
             desired,
-            {name for name, unit in units.items() if unit.error or unit.session is None or unit.env != env},
+            {name for name, unit in units.items() if unit.error or unit.session is None or unit.env != env} | asked,
         )
         # Stop first (in parallel: each stop may wait seconds for a node to exit), then start.
         stop_all(units[name].stop for name in changes.stop + changes.restart)
@@ -461,6 +468,7 @@ class Agent:
             unit = Unit(fleet, desired[name], self.store.unit_dir(fleet, name), env, hosts)
             unit.generation = generation
             unit.deployed_generation = deployed.get(name, generation)
+            unit.restarted = restarted.get(name, 0)
             with self._lock:
                 self._units[(fleet, name)] = unit
             unit.start(overrides.get(name, {}))
@@ -800,6 +808,21 @@ class Agent:
             raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
         nodes = [request.node] if request.node else unit.node_names()
         yield p.logs_key(request.fleet, self.name), p.encode(robot_logs(nodes, unit.log_file, request))
+
+    # -- restart --------------------------------------------------------------------------------
+
+    def _handle_restart(self, query):
+        """Have the reconcile thread, which alone starts and stops units, stop the unit and start
+        it again as it is deployed; answer at once with the number of this restart."""
+        request = p.decode(_payload(query), p.RestartRequest)
+        self._unit(request.fleet, request.robot)  # not_found for a unit not here
+        key = (request.fleet, request.robot)
+        with self._lock:
+            number = self._restarts_asked[key] = self._restarts_asked.get(key, 0) + 1
+            self._restarts_due.add(key)
+        log.info("fleet %s: restarting %s, as asked", request.fleet, request.robot)
+        self._work.put(request.fleet)
+        yield p.restart_key(request.fleet, self.name), p.encode(p.RestartReply(restart=number))
 
     def _unit(self, fleet: str, robot: str) -> Unit:
         with self._lock:

@@ -81,6 +81,7 @@ class Unit:
         self.env = env
         self.generation = 0  # of the desired state it was last reconciled to
         self.deployed_generation = 0  # of the deploy that brought the description it runs
+        self.restarted = 0  # the `fleet restart`s of it carried out before it started
         self.session: LaunchSession | None = None
         self.error = ""
         self.seen_running = False
@@ -187,6 +188,7 @@ class Unit:
             hot_digest=self.bundle.hot_digest,
             overrides=overrides,
             error=self.error,
+            restarted=self.restarted,
         )
 
     def world_file(self) -> dict[str, Any] | None:

@@ -10,6 +10,7 @@ Key space (every key lives under the fleet's name, so several fleets share one r
     fleet/<fleet>/agent/<agent>/apply      queryable  ApplyRequest -> ApplyReply
     fleet/<fleet>/agent/<agent>/logs       queryable  LogsRequest  -> LogsReply
     fleet/<fleet>/agent/<agent>/param      queryable  ParamRequest -> ParamReply
+    fleet/<fleet>/agent/<agent>/restart    queryable  RestartRequest -> RestartReply
     fleet/<fleet>/agent/<agent>/world      queryable  WorldRequest -> WorldReply (the agent running the world)
     fleet/<fleet>/status/agent/<agent>     queryable  (no payload) -> StatusReply
     fleet/<fleet>/status/registry          queryable  (router)     -> RegistryReply
@@ -94,6 +95,10 @@ def logs_key(fleet: str, agent: str) -> str:
 
 def param_key(fleet: str, agent: str) -> str:
     return f"fleet/{fleet}/agent/{agent}/param"
+
+
+def restart_key(fleet: str, agent: str) -> str:
+    return f"fleet/{fleet}/agent/{agent}/restart"
 
 
 def world_key(fleet: str, agent: str) -> str:
@@ -427,6 +432,8 @@ class RobotState(BaseModel):
     hot_digest: str = ""
     overrides: dict[str, dict[str, Any]] = {}  # node -> parameter -> value set live
     error: str = ""
+    # How many `fleet restart`s of it its agent has carried out (RestartReply.restart)
+    restarted: int = 0
 
 
 class AgentInfo(BaseModel):
@@ -616,7 +623,7 @@ class WorldReply(Message):
 
 
 # ---------------------------------------------------------------------------------------------
-# Logs and parameters
+# Logs, restarts and parameters
 
 
 class LogsRequest(Message):
@@ -638,6 +645,21 @@ class LogsReply(Message):
     kind: Literal["logs_reply"] = "logs_reply"
     lines: list[LogLine]
     cursor: dict[str, int]
+
+
+class RestartRequest(Message):
+    """Stop a robot's (or the world's) nodes and start them again, as they are deployed."""
+
+    kind: Literal["restart"] = "restart"
+    fleet: str
+    robot: str
+
+
+class RestartReply(Message):
+    kind: Literal["restart_reply"] = "restart_reply"
+    # The number of this restart: the robot's status shows `restarted` at least this once its
+    # agent has stopped it and started it again.
+    restart: int
 
 
 # How long an agent waits for a node's parameter service: a loaded host needs seconds for

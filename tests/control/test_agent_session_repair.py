@@ -117,7 +117,7 @@ def test_a_session_the_router_stops_answering_is_replaced(serving):
     assert stalled.closed and stalled.queries == agent_module.STALLED_FETCHES
     fresh = opened[0]
     assert agent._session is fresh
-    assert sorted(fresh.queryables) == sorted(stalled.queryables) and len(fresh.queryables) == 5
+    assert sorted(fresh.queryables) == sorted(stalled.queryables) and len(fresh.queryables) == 6
     poll(lambda: fresh.queries, until=lambda n: n >= 5, timeout=10, what="queries on the new session")
     assert len(opened) == 1 and not fresh.closed  # it answers: kept
 

@@ -1,0 +1,111 @@
+"""`fleet restart ROBOT...` over the control plane, with fleets/two_robots.yaml's real nodes and
+world: the robot's nodes stop and start again as deployed (parameters set live kept), the other
+robot's nodes are not touched, the world resumes its time, and the command waits until each one
+runs again; whichever isolation runs them.  An unknown robot is bad input."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+
+from tests.checkout import FLEETS
+from tests.control.control_helpers import Cluster
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(scope="module")
+def one_agent(tmp_path_factory, domain_id):
+    """A router and agent hostA, which runs two_robots.yaml's world and robots."""
+    cluster = Cluster(tmp_path_factory.mktemp("restart"), domain_id)
+    try:
+        cluster.start_router()
+        cluster.start_agent("hostA")
+        cluster.wait_agents_online("hostA")
+        yield cluster
+    finally:
+        cluster.stop()
+
+
+def deploy(cluster: Cluster, isolation: str) -> None:
+    data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
+    data["ros"]["domain_id"] = cluster.domain_id
+    data["agents"] = {"hostA": {}}
+    data["defaults"]["agent"] = "hostA"
+    data["defaults"]["isolation"] = isolation
+    path = cluster.root / f"two_robots-{isolation}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    done = fleet(cluster, "deploy", str(path), "--timeout", "150", timeout=200)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def fleet(cluster: Cluster, *args: str, timeout: float = 120):
+    return cluster.cli(*args, "--connect", cluster.endpoint, timeout=timeout)
+
+
+def status(cluster: Cluster) -> dict:
+    shown = fleet(cluster, "status", "--json", "--fleet", "two_robots")
+    assert shown.returncode == 0, shown.stdout + shown.stderr
+    return json.loads(shown.stdout)
+
+
+def rows(document: dict) -> dict[str, dict]:
+    return {row["name"]: row for row in document["robots"]}
+
+
+def restart(cluster: Cluster, *robots: str) -> dict:
+    done = fleet(cluster, "restart", *robots, "--json", "--timeout", "100")
+    outcome = json.loads(done.stdout)
+    assert done.returncode == 0 and outcome["ok"], done.stdout + done.stderr
+    return outcome
+
+
+def test_a_restarted_robot_runs_again_with_new_processes_and_its_live_parameters(one_agent):
+    cluster = one_agent
+    deploy(cluster, "process")
+    assert fleet(cluster, "param", "set", "robot1", "controller", "max_speed", "0.3").returncode == 0
+    before = rows(status(cluster))
+
+    outcome = restart(cluster, "robot1")
+    assert [(r["name"], r["agent"], r["restart"], r["back"]) for r in outcome["robots"]] == [
+        ("robot1", "hostA", 1, True)
+    ]
+    after = rows(status(cluster))
+    assert after["robot1"]["state"] == "running" and after["robot1"]["restarted"] == 1, after["robot1"]
+    old = {node["pid"] for node in before["robot1"]["nodes"]}
+    new = {node["pid"] for node in after["robot1"]["nodes"]}
+    assert len(new) == 3 and not old & new, (old, new)
+    assert [node["pid"] for node in after["robot2"]["nodes"]] == [node["pid"] for node in before["robot2"]["nodes"]]
+    assert after["robot2"]["restarted"] == 0
+    got = fleet(cluster, "param", "get", "robot1", "controller", "max_speed")
+    assert got.stdout.strip() == "0.3", got.stdout + got.stderr
+
+    # The world too: it resumes from its last time, and the robots keep running in it.
+    sim_time = status(cluster)["worlds"][0]["sim_time"]
+    restart(cluster, "world")
+    again = status(cluster)
+    assert again["worlds"][0]["sim_time"] >= sim_time and rows(again)["world"]["restarted"] == 1, again["worlds"]
+
+    # A robot nobody deployed: bad input, one line, nothing restarted.
+    unknown = fleet(cluster, "restart", "robot1", "robot9")
+    assert unknown.returncode == 2 and unknown.stderr.count("\n") == 1, unknown.stdout + unknown.stderr
+    assert "no robot named 'robot9' is deployed" in unknown.stderr
+    assert rows(status(cluster))["robot1"]["restarted"] == 1
+
+
+def test_a_restarted_hosted_robot_is_made_again_in_its_host_and_no_other_is(one_agent):
+    cluster = one_agent
+    deploy(cluster, "agent")
+    before = rows(status(cluster))
+    outcome = restart(cluster, "robot2")
+    assert [(r["name"], r["back"]) for r in outcome["robots"]] == [("robot2", True)]
+    after = rows(status(cluster))
+    # One host process runs both robots: robot2's nodes are made again in it, robot1's run on.
+    assert {node["pid"] for node in after["robot2"]["nodes"]} == {node["pid"] for node in before["robot2"]["nodes"]}
+    assert min(node["uptime"] for node in after["robot1"]["nodes"]) > max(
+        node["uptime"] for node in after["robot2"]["nodes"]
+    ), (after["robot1"]["nodes"], after["robot2"]["nodes"])
+    assert after["robot2"]["restarted"] == before["robot2"]["restarted"] + 1
+    assert after["robot1"]["restarted"] == before["robot1"]["restarted"]
