@@ -477,6 +477,21 @@ class FleetHandle:
         self.wait_for(lambda: pid not in self.pids(robot), timeout=20, what=f"{robot}/{node} (pid {pid}) to be gone")
         return pid
 
+    def restart(self, *robots: str, timeout: float = 60.0, check: bool = True):
+        """`fleet restart`: each robot's (or the world's) nodes stop and start again as deployed;
+        returns fleet.client.deployment's Restart once each runs again.  With check=True a
+        robot that did not fails the test."""
+        from fleet.client import restart
+
+        for robot in robots:
+            self._known(robot, world=True)
+        with self.control.client() as client:
+            outcome = restart(client, list(robots), self.name, timeout=timeout)
+        if check and not outcome.ok:
+            rows = "; ".join(f"{row.name} {row.state} {row.reason}".strip() for row in outcome.rows.values())
+            raise AssertionError(f"restart of {', '.join(robots)} failed: {rows}\n" + self.report_text())
+        return outcome
+
     def kill_world(self, signum: int = signal.SIGKILL) -> int:
         return self.kill_node(WORLD, WORLD, signum)
 
@@ -611,8 +626,9 @@ def _describe(process) -> str:
 
 class _SimClock:
     """Sim time elapsed since creation, from the world's status file.  Counts only forward
-    steps, so a restarted world (whose clock starts again at 0) does not end a wait early or
-    make it hang; without a world (real robots) it is wall time."""
+    steps, so a wait neither ends early nor hangs whatever a restarted world's clock does (it
+    resumes from its last status, a little ahead after a crash); without a world (real robots)
+    it is wall time."""
 
     def __init__(self, fleet: FleetHandle):
         self.fleet = fleet

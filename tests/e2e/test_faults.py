@@ -64,6 +64,17 @@ def test_killed_node_is_respawned(fleet):
     fleet.assert_no_leaks()
 
 
+def test_a_restarted_robot_on_another_agent_runs_again_and_drives_on(fleet):
+    """fleet.restart: robot2's nodes on hostB stop and start again (all new processes), robot1's
+    on hostA are not touched, and robot2 drives on in the world."""
+    before = {robot: fleet.pids(robot) for robot in ROBOTS}
+    outcome = fleet.restart("robot2")
+    assert outcome.ok and outcome.asked[("two_robots", "robot2")][0] == "hostB", outcome.to_json()
+    assert not fleet.pids("robot2") & before["robot2"] and fleet.pids("robot1") == before["robot1"]
+    drives_on(fleet, "robot2")
+    fleet.assert_no_leaks()
+
+
 def test_killed_agent_restores_its_robots_from_persisted_state(fleet):
     before = node_pids(fleet.status())
     generation = fleet.robot_status("robot2").generation
