@@ -125,7 +125,8 @@ def restart(
 ) -> None:
     """Stop robots' nodes and start them again as deployed (parameters set live are kept).
 
-    Exits 1 unless every robot runs again within the timeout (with --no-wait: once asked)."""
+    Exits 1 unless every robot runs again within the timeout, and so do the other robots of
+    its fleet that ran before (with --no-wait: once asked)."""
     from fleet.cli.output import console, labelled, print_json
     from fleet.client import restart as restart_robots
 
@@ -147,6 +148,9 @@ def restart(
                 state = "not seen" if row is None else row.state + (f" ({row.reason})" if row.reason else "")
                 why = "timed out waiting" if outcome.timed_out else "waiting longer would not help"
                 out.print(labelled(f"{name}:", "red", f"{state}: {why}"))
+        for row in outcome.others_not_running:
+            state = row.state + (f" ({row.reason})" if row.reason else "")
+            out.print(labelled(f"{row.name}:", "red", f"ran before the restart, {state} now"))
     if not outcome.ok:
         raise typer.Exit(1)
 

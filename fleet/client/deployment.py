@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
-from fleet.client.robots import fleet_status, locate_robot
+from fleet.client.robots import fleet_status, robot_place
 from fleet.errors import ControlError
 from fleet.plan import (
     FleetView,
@@ -248,11 +248,14 @@ def _stuck(row: RobotRow) -> bool:
 @dataclass
 class Restart:
     """`fleet restart`: each robot asked for, by (fleet, name), with its agent and the number of
-    its restart there, and the robots as last seen."""
+    its restart there; the robots as last seen, and those of their fleets that ran before the
+    restart (a restarted world takes its robots' data away for a moment)."""
 
     asked: dict[tuple[str, str], tuple[str, int]]
     waited: bool = True
     rows: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
+    ran_before: set[tuple[str, str]] = field(default_factory=set)
+    others: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
     timed_out: bool = False
 
     def back(self, key: tuple[str, str]) -> bool:
@@ -261,8 +264,16 @@ class Restart:
         return row is not None and row.restarted >= self.asked[key][1] and row.state == "running" and _steady(row)
 
     @property
+    def others_not_running(self) -> list[RobotRow]:
+        """Robots that ran before the restart and do not now."""
+        return [row for key, row in self.others.items() if row.state != "running"] + [
+            RobotRow(fleet, name, "robot", "", "gone", reason="not in status any more")
+            for fleet, name in sorted(self.ran_before - set(self.others) - set(self.asked))
+        ]
+
+    @property
     def ok(self) -> bool:
-        return not self.waited or all(self.back(key) for key in self.asked)
+        return not self.waited or (all(self.back(key) for key in self.asked) and not self.others_not_running)
 
     def to_json(self) -> dict[str, Any]:
         robots = []
@@ -279,7 +290,17 @@ class Restart:
                     "reason": row.reason if row else "",
                 }
             )
-        return {"ok": self.ok, "waited": self.waited, "timed_out": self.timed_out, "robots": robots}
+        others = [
+            {"fleet": row.fleet, "name": row.name, "state": row.state, "reason": row.reason}
+            for row in self.others_not_running
+        ]
+        return {
+            "ok": self.ok,
+            "waited": self.waited,
+            "timed_out": self.timed_out,
+            "robots": robots,
+            "others_not_running": others,
+        }
 
 
 def restart(
@@ -291,21 +312,31 @@ def restart(
     on_progress: Callable[[list[RobotRow]], None] | None = None,
 ) -> Restart:
     """Ask each robot's agent to stop it and start it again as deployed; with `wait`, follow them
-    until each one is back and runs steadily, or will not by waiting (a node that keeps exiting)."""
-    located = {robot: locate_robot(client, robot, fleet) for robot in dict.fromkeys(robots)}  # all found first
-    outcome = Restart(asked={}, waited=wait)
+    until each one is back and runs steadily, or will not by waiting (a node that keeps exiting),
+    and the other robots of their fleets that ran before run again."""
+    before = build_view(*client.status(fleet), time.time())
+    located = {robot: robot_place(before, robot, fleet) for robot in dict.fromkeys(robots)}  # all found first
+    fleets = {fleet_name for fleet_name, _ in located.values()}
+    outcome = Restart(
+        asked={},
+        waited=wait,
+        ran_before={(row.fleet, row.name) for row in before.robots if row.fleet in fleets and row.state == "running"},
+    )
     for robot, (fleet_name, agent) in located.items():
         reply = client.restart(agent, p.RestartRequest(fleet=fleet_name, robot=robot))
         outcome.asked[(fleet_name, robot)] = (agent, reply.restart)
-    fleets = {fleet_name for fleet_name, _ in outcome.asked}
     deadline = time.monotonic() + timeout
     while wait:
         view = build_view(*client.status(next(iter(fleets)) if len(fleets) == 1 else None), time.time())
-        outcome.rows = {(row.fleet, row.name): row for row in view.robots if (row.fleet, row.name) in outcome.asked}
+        rows = {(row.fleet, row.name): row for row in view.robots}
+        outcome.rows = {key: row for key, row in rows.items() if key in outcome.asked}
+        outcome.others = {key: row for key, row in rows.items() if key in outcome.ran_before - set(outcome.asked)}
         if on_progress is not None:
-            on_progress(list(outcome.rows.values()))
+            on_progress([*outcome.rows.values(), *outcome.others.values()])
         restarted = [key for key, row in outcome.rows.items() if row.restarted >= outcome.asked[key][1]]
-        if all(outcome.back(key) or (key in restarted and _stuck(outcome.rows[key])) for key in outcome.asked):
+        if any(key in restarted and _stuck(outcome.rows[key]) for key in outcome.asked):
+            break  # waiting longer would not help
+        if outcome.ok:
             break
         if time.monotonic() >= deadline:
             outcome.timed_out = True

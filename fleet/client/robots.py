@@ -23,7 +23,11 @@ def fleet_status(client: ControlClient, fleet: str | None) -> tuple[list[p.Statu
 
 def locate_robot(client: ControlClient, robot: str, fleet: str | None) -> tuple[str, str]:
     """(fleet, agent) running `robot`, from one status query."""
-    view = build_view(*client.status(fleet), time.time())
+    return robot_place(build_view(*client.status(fleet), time.time()), robot, fleet)
+
+
+def robot_place(view: FleetView, robot: str, fleet: str | None) -> tuple[str, str]:
+    """(fleet, agent) running `robot` in `view`; BadRequest for a robot it does not have."""
     found = view.find_robot(robot, fleet)
     if not found:
         raise BadRequest(f"no robot named {robot!r} is deployed" + (f" in fleet {fleet}" if fleet else ""))

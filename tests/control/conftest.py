@@ -48,3 +48,17 @@ def fresh_two_agents(fresh_cluster):
     """A router and agents hostA and hostB of this test alone (it may kill and restart them),
     both agents online."""
     return start_two_agents(fresh_cluster)
+
+
+@pytest.fixture(scope="module")
+def host_a(tmp_path_factory, domain_id):
+    """A router and agent hostA of a module's tests, which run fleets/two_robots.yaml there
+    (Cluster.two_robots_on_host_a)."""
+    cluster = Cluster(tmp_path_factory.mktemp("host_a"), domain_id)
+    try:
+        cluster.start_router()
+        cluster.start_agent("hostA")
+        cluster.wait_agents_online("hostA")
+        yield cluster
+    finally:
+        cluster.stop()

@@ -17,6 +17,7 @@ import yaml
 
 from fleet.testing.control_plane import ControlPlane
 from fleet.testing.poll import poll
+from tests.checkout import FLEETS
 
 if TYPE_CHECKING:
     from fleet.client import ControlClient
@@ -73,6 +74,18 @@ class Cluster(ControlPlane):
             data["robots"] = robots
         data.update(changes)
         path = self.root / f"{name}-{time.monotonic_ns()}.yaml"
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        return path
+
+    def two_robots_on_host_a(self, isolation: str) -> Path:
+        """fleets/two_robots.yaml (real nodes and world) in this cluster's domain, all on agent
+        hostA, with that isolation."""
+        data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
+        data["ros"]["domain_id"] = self.domain_id
+        data["agents"] = {"hostA": {}}
+        data["defaults"]["agent"] = "hostA"
+        data["defaults"]["isolation"] = isolation
+        path = self.root / f"two_robots-{isolation}.yaml"
         path.write_text(yaml.safe_dump(data, sort_keys=False))
         return path
 

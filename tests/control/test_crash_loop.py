@@ -9,39 +9,12 @@ import json
 import time
 
 import pytest
-import yaml
 
 from fleet.testing.poll import poll
-from tests.checkout import FLEETS
-from tests.control.control_helpers import Cluster
 
 pytestmark = pytest.mark.integration
 
 REFUSAL = "parameter 'max_speed' = 9.0 is out of range 0.0 .. 5.0"  # fleet/nodes/common.py's words
-
-
-@pytest.fixture(scope="module")
-def one_agent(tmp_path_factory, domain_id):
-    """A router and agent hostA, which runs two_robots.yaml's world and robots."""
-    cluster = Cluster(tmp_path_factory.mktemp("crash_loop"), domain_id)
-    try:
-        cluster.start_router()
-        cluster.start_agent("hostA")
-        cluster.wait_agents_online("hostA")
-        yield cluster
-    finally:
-        cluster.stop()
-
-
-def spec(cluster: Cluster, isolation: str):
-    data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
-    data["ros"]["domain_id"] = cluster.domain_id
-    data["agents"] = {"hostA": {}}
-    data["defaults"]["agent"] = "hostA"
-    data["defaults"]["isolation"] = isolation
-    path = cluster.root / f"two_robots-{isolation}.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
 
 
 def rows(document: dict) -> dict[str, dict]:
@@ -49,9 +22,15 @@ def rows(document: dict) -> dict[str, dict]:
 
 
 @pytest.mark.parametrize("isolation", ["process", "agent"])
-def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_deploy_early(one_agent, isolation):
-    cluster = one_agent
-    refused = [str(spec(cluster, isolation)), "--set", "robot2.controller.max_speed=9.0", "--connect", cluster.endpoint]
+def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_deploy_early(host_a, isolation):
+    cluster = host_a
+    refused = [
+        str(cluster.two_robots_on_host_a(isolation)),
+        "--set",
+        "robot2.controller.max_speed=9.0",
+        "--connect",
+        cluster.endpoint,
+    ]
     began = time.monotonic()
     done = cluster.cli("deploy", *refused, "--json", "--timeout", "150", timeout=200)
     took = time.monotonic() - began
@@ -81,15 +60,21 @@ def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_dep
     assert table.returncode == 1 and "REASON" in table.stdout and REFUSAL in table.stdout, table.stdout
 
 
-def test_a_deploy_without_waiting_is_ok_once_taken_and_exits_0(one_agent):
-    cluster = one_agent
+def test_a_deploy_without_waiting_is_ok_once_taken_and_exits_0(host_a):
+    cluster = host_a
     up = cluster.cli(
-        "deploy", str(spec(cluster, "process")), "--connect", cluster.endpoint, "--timeout", "150", timeout=200
+        "deploy",
+        str(cluster.two_robots_on_host_a("process")),
+        "--connect",
+        cluster.endpoint,
+        "--timeout",
+        "150",
+        timeout=200,
     )
     assert up.returncode == 0, up.stdout + up.stderr
     done = cluster.cli(
         "deploy",
-        str(spec(cluster, "process")),
+        str(cluster.two_robots_on_host_a("process")),
         "--set",
         "robot2.controller.max_speed=0.45",
         "--no-wait",

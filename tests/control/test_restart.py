@@ -8,36 +8,14 @@ from __future__ import annotations
 import json
 
 import pytest
-import yaml
 
-from tests.checkout import FLEETS
 from tests.control.control_helpers import Cluster
 
 pytestmark = pytest.mark.integration
 
 
-@pytest.fixture(scope="module")
-def one_agent(tmp_path_factory, domain_id):
-    """A router and agent hostA, which runs two_robots.yaml's world and robots."""
-    cluster = Cluster(tmp_path_factory.mktemp("restart"), domain_id)
-    try:
-        cluster.start_router()
-        cluster.start_agent("hostA")
-        cluster.wait_agents_online("hostA")
-        yield cluster
-    finally:
-        cluster.stop()
-
-
 def deploy(cluster: Cluster, isolation: str) -> None:
-    data = yaml.safe_load((FLEETS / "two_robots.yaml").read_text())
-    data["ros"]["domain_id"] = cluster.domain_id
-    data["agents"] = {"hostA": {}}
-    data["defaults"]["agent"] = "hostA"
-    data["defaults"]["isolation"] = isolation
-    path = cluster.root / f"two_robots-{isolation}.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    done = fleet(cluster, "deploy", str(path), "--timeout", "150", timeout=200)
+    done = fleet(cluster, "deploy", str(cluster.two_robots_on_host_a(isolation)), "--timeout", "150", timeout=200)
     assert done.returncode == 0, done.stdout + done.stderr
 
 
@@ -62,8 +40,8 @@ def restart(cluster: Cluster, *robots: str) -> dict:
     return outcome
 
 
-def test_a_restarted_robot_runs_again_with_new_processes_and_its_live_parameters(one_agent):
-    cluster = one_agent
+def test_a_restarted_robot_runs_again_with_new_processes_and_its_live_parameters(host_a):
+    cluster = host_a
     deploy(cluster, "process")
     assert fleet(cluster, "param", "set", "robot1", "controller", "max_speed", "0.3").returncode == 0
     before = rows(status(cluster))
@@ -95,8 +73,8 @@ def test_a_restarted_robot_runs_again_with_new_processes_and_its_live_parameters
     assert rows(status(cluster))["robot1"]["restarted"] == 1
 
 
-def test_a_restarted_hosted_robot_is_made_again_in_its_host_and_no_other_is(one_agent):
-    cluster = one_agent
+def test_a_restarted_hosted_robot_is_made_again_in_its_host_and_no_other_is(host_a):
+    cluster = host_a
     deploy(cluster, "agent")
     before = rows(status(cluster))
     outcome = restart(cluster, "robot2")
