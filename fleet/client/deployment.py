@@ -265,7 +265,9 @@ class Restart:
 
     @property
     def others_not_running(self) -> list[RobotRow]:
-        """Robots that ran before the restart and do not now."""
+        """Robots that ran before the restart and do not now (none looked at without waiting)."""
+        if not self.waited:
+            return []
         return [row for key, row in self.others.items() if row.state != "running"] + [
             RobotRow(fleet, name, "robot", "", "gone", reason="not in status any more")
             for fleet, name in sorted(self.ran_before - set(self.others) - set(self.asked))

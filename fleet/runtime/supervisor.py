@@ -332,9 +332,7 @@ class LaunchSession:
                 raise LaunchFileError("launch file not found", Location(self.path))
             if check_only:  # what ros2 launch would refuse too (a missing executable); not what only it reads
                 with contextlib.suppress(NeedsRos2Launch):
-                    check_launch_file(
-                        self.path, self.launch_args, self.base_env, ament.ament_prefix_path(self.base_env)
-                    )
+                    self._check_file()
                 return []
             self.backend = "ros2"
             return [self._ros2_spec(ros2)]

@@ -654,6 +654,11 @@ class RestartRequest(Message):
     fleet: str
     robot: str
 
+    @field_validator("fleet", "robot")
+    @classmethod
+    def _names_are_key_chunks(cls, value: str) -> str:
+        return _check_key_name(value)
+
 
 class RestartReply(Message):
     kind: Literal["restart_reply"] = "restart_reply"

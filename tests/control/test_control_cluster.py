@@ -212,6 +212,33 @@ def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
     assert cluster.processes["agent-hostA"].poll() is None
 
 
+def test_a_restart_restarts_its_robot_alone_and_bad_restart_messages_get_error_replies(cluster):
+    from fleet.client import restart
+
+    cluster.deploy(cluster.spec())
+    before = {name: (pids, state) for name, pids, _generation, state in _settled_rows(cluster, "tiny")}
+    bad = {
+        "malformed": b"{not json",
+        "empty": b"",
+        "a robot not here": p.encode(p.RestartRequest(fleet="tiny", robot="robot2")),  # robot2 runs on hostB
+        "a wildcard fleet": json.dumps({"v": 1, "kind": "restart", "fleet": "*", "robot": "robot1"}).encode(),
+    }
+    with cluster.client() as client:
+        for label, payload in bad.items():
+            replies = list(client.session.get(p.restart_key("tiny", "hostA"), payload=payload, timeout=10))
+            assert len(replies) == 1 and replies[0].err is not None, label
+            assert json.loads(replies[0].err.payload.to_bytes())["kind"] == "error", label
+    assert {name: (pids, state) for name, pids, _generation, state in _settled_rows(cluster, "tiny")} == before
+
+    with cluster.client() as client:
+        outcome = restart(client, ["robot3"], "tiny", timeout=30)
+    assert outcome.ok and outcome.asked == {("tiny", "robot3"): ("hostB", 1)}, outcome.to_json()
+    after = {name: (pids, state) for name, pids, _generation, state in _settled_rows(cluster, "tiny")}
+    assert not after["robot3"][0] & before["robot3"][0]
+    assert after["robot1"] == before["robot1"] and after["robot2"] == before["robot2"]
+    assert robot(cluster.view("tiny"), "robot3").restarted == 1
+
+
 def test_a_robot_that_cannot_start_on_its_agent_leaves_the_whole_fleet_as_it_was(cluster, tmp_path):
     """kubectl-style admission: every agent is asked first whether it could start what it would
     start or change; one robot's launch file naming an executable hostB does not have stops the
