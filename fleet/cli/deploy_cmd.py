@@ -125,8 +125,7 @@ def restart(
 ) -> None:
     """Stop robots' nodes and start them again as deployed (parameters set live are kept).
 
-    Exits 1 unless every robot runs again within the timeout, and so do the other robots of
-    its fleet that ran before (with --no-wait: once asked)."""
+    Exits 1 unless they, and their fleet's robots that ran before, run again in time."""
     from fleet.cli.output import console, labelled, print_json
     from fleet.client import restart as restart_robots
 
