@@ -41,6 +41,11 @@ from typing import Any
 
 PROGRAM = "host"
 WAIT = 0.2  # s: longest the executor waits before looking at requests and due restarts again
+# s: a robot that failed is made again no sooner than this after the host started.  Nodes made
+# and destroyed again and again in a participant the discovery server has only just met can cost
+# another robot of the host its discovery for good (Fast DDS 2.14.5; docs/architecture.md, "Known
+# problem": 22 of 551 trials on a loaded machine, none of 243 with this wait).
+YOUNG = 3.0
 MAX_LINE = 1 << 20  # bytes of one request line
 
 
@@ -103,6 +108,7 @@ class Host:
         from fleet.nodes.batch_executor import BatchExecutor
 
         self.executor = BatchExecutor(context=context)  # context: rclpy's default one
+        self.started_at = time.monotonic()
         self.robots: dict[str, HostedRobot] = {}
         self.owner: dict[int, str] = {}  # id(node) -> robot, for the nodes alive now
         self.requests: queue.Queue[tuple[dict[str, Any], Future]] = queue.Queue()
@@ -229,7 +235,8 @@ class Host:
         ran_for = now - robot.started_at if robot.started_at else 0.0
         robot.failures_in_row = 1 if ran_for >= STABLE_AFTER else robot.failures_in_row + 1
         robot.state = "backoff"
-        robot.restart_at = now + backoff_delay(robot.respawn_delay, robot.failures_in_row)
+        due = now + backoff_delay(robot.respawn_delay, robot.failures_in_row)
+        robot.restart_at = max(due, self.started_at + YOUNG)
 
     def restart_due(self) -> None:
         now = time.monotonic()

@@ -31,3 +31,25 @@ def test_one_wait_serves_every_callback_ready_together(ros):
         host.executor.remove_node(node)
         node.destroy_node()
         host.executor.shutdown()
+
+
+def test_a_robot_failing_in_a_young_host_is_made_again_only_once_the_host_is_a_few_seconds_old(ros):
+    """Made and destroyed again and again in a participant the discovery server has only just
+    met, a failing robot's nodes can cost another robot of the host its discovery for good
+    (docs/architecture.md, "Known problem"): its retries wait until the host is YOUNG seconds old.
+    An older host retries after the runner's backoff alone."""
+    from fleet.nodes.host import YOUNG, HostedRobot
+
+    host = Host(context=ros.context)
+    try:
+        young = HostedRobot(name="robot2", nodes=[], respawn_delay=0.1)
+        host.after_failure(young)
+        assert young.state == "backoff" and young.restart_at is not None
+        assert young.restart_at >= host.started_at + YOUNG
+        host.started_at -= YOUNG
+        older = HostedRobot(name="robot3", nodes=[], respawn_delay=0.1)
+        asked = time.monotonic()
+        host.after_failure(older)
+        assert older.restart_at is not None and older.restart_at - asked < 1.0
+    finally:
+        host.executor.shutdown()
