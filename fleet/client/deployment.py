@@ -248,30 +248,44 @@ def _stuck(row: RobotRow) -> bool:
 @dataclass
 class Restart:
     """`fleet restart`: each robot asked for, by (fleet, name), with its agent and the number of
-    its restart there; the robots as last seen, and those of their fleets that ran before the
-    restart (a restarted world takes its robots' data away for a moment)."""
+    its restart there; the robots of their fleets that ran before the restart (a restarted world
+    takes its robots' data away for a moment), and every robot of those fleets as last seen."""
 
     asked: dict[tuple[str, str], tuple[str, int]]
     waited: bool = True
-    rows: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
     ran_before: set[tuple[str, str]] = field(default_factory=set)
-    others: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
+    seen: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
     timed_out: bool = False
+
+    @property
+    def rows(self) -> dict[tuple[str, str], RobotRow]:
+        """The robots asked for, as last seen."""
+        return {key: row for key, row in self.seen.items() if key in self.asked}
+
+    def restarted(self, key: tuple[str, str]) -> RobotRow | None:
+        """The robot as last seen, once its agent has stopped it and started it again."""
+        row = self.seen.get(key)
+        return row if row is not None and row.restarted >= self.asked[key][1] else None
 
     def back(self, key: tuple[str, str]) -> bool:
         """The robot was stopped and started again, and runs steadily."""
-        row = self.rows.get(key)
-        return row is not None and row.restarted >= self.asked[key][1] and row.state == "running" and _steady(row)
+        row = self.restarted(key)
+        return row is not None and row.state == "running" and _steady(row)
+
+    def hopeless(self) -> bool:
+        """A robot, started again, keeps failing: waiting longer would not help."""
+        return any((row := self.restarted(key)) is not None and _stuck(row) for key in self.asked)
 
     @property
     def others_not_running(self) -> list[RobotRow]:
         """Robots that ran before the restart and do not now (none looked at without waiting)."""
         if not self.waited:
             return []
-        return [row for key, row in self.others.items() if row.state != "running"] + [
-            RobotRow(fleet, name, "robot", "", "gone", reason="not in status any more")
-            for fleet, name in sorted(self.ran_before - set(self.others) - set(self.asked))
+        rows = [
+            self.seen.get(key) or RobotRow(*key, "robot", "", "gone", reason="not in status any more")
+            for key in sorted(self.ran_before - set(self.asked))
         ]
+        return [row for row in rows if row.state != "running"]
 
     @property
     def ok(self) -> bool:
@@ -328,17 +342,14 @@ def restart(
         reply = client.restart(agent, p.RestartRequest(fleet=fleet_name, robot=robot))
         outcome.asked[(fleet_name, robot)] = (agent, reply.restart)
     deadline = time.monotonic() + timeout
+    followed = set(outcome.asked) | outcome.ran_before
+    asked_fleet = next(iter(fleets)) if len(fleets) == 1 else None
     while wait:
-        view = build_view(*client.status(next(iter(fleets)) if len(fleets) == 1 else None), time.time())
-        rows = {(row.fleet, row.name): row for row in view.robots}
-        outcome.rows = {key: row for key, row in rows.items() if key in outcome.asked}
-        outcome.others = {key: row for key, row in rows.items() if key in outcome.ran_before - set(outcome.asked)}
+        view = build_view(*client.status(asked_fleet), time.time())
+        outcome.seen = {(row.fleet, row.name): row for row in view.robots if row.fleet in fleets}
         if on_progress is not None:
-            on_progress([*outcome.rows.values(), *outcome.others.values()])
-        restarted = [key for key, row in outcome.rows.items() if row.restarted >= outcome.asked[key][1]]
-        if any(key in restarted and _stuck(outcome.rows[key]) for key in outcome.asked):
-            break  # waiting longer would not help
-        if outcome.ok:
+            on_progress([row for key, row in outcome.seen.items() if key in followed])
+        if outcome.ok or outcome.hopeless():
             break
         if time.monotonic() >= deadline:
             outcome.timed_out = True
