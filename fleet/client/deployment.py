@@ -249,13 +249,16 @@ def _stuck(row: RobotRow) -> bool:
 class Restart:
     """`fleet restart`: each robot asked for, by (fleet, name), with its agent and the number of
     its restart there; the robots of their fleets that ran before the restart (a restarted world
-    takes its robots' data away for a moment), and every robot of those fleets as last seen."""
+    takes its robots' data away for a moment), and every robot of those fleets as last seen.
+    Agents by when their process started: when asked, and as last seen."""
 
     asked: dict[tuple[str, str], tuple[str, int]]
     waited: bool = True
     ran_before: set[tuple[str, str]] = field(default_factory=set)
     seen: dict[tuple[str, str], RobotRow] = field(default_factory=dict)
     timed_out: bool = False
+    agents_asked: dict[str, float] = field(default_factory=dict)
+    agents_seen: dict[str, float] = field(default_factory=dict)
 
     @property
     def rows(self) -> dict[tuple[str, str], RobotRow]:
@@ -263,9 +266,16 @@ class Restart:
         return {key: row for key, row in self.seen.items() if key in self.asked}
 
     def restarted(self, key: tuple[str, str]) -> RobotRow | None:
-        """The robot as last seen, once its agent has stopped it and started it again."""
+        """The robot as last seen, once its agent has stopped it and started it again, or once
+        the agent itself was started again since: a new agent process starts its robots anew,
+        and counts restarts from 0."""
         row = self.seen.get(key)
-        return row if row is not None and row.restarted >= self.asked[key][1] else None
+        if row is None:
+            return None
+        agent, number = self.asked[key]
+        when_asked, now = self.agents_asked.get(agent), self.agents_seen.get(agent)
+        agent_anew = when_asked is not None and now is not None and now != when_asked
+        return row if row.restarted >= number or agent_anew else None
 
     def back(self, key: tuple[str, str]) -> bool:
         """The robot was stopped and started again, and runs steadily."""
@@ -337,6 +347,7 @@ def restart(
         asked={},
         waited=wait,
         ran_before={(row.fleet, row.name) for row in before.robots if row.fleet in fleets and row.state == "running"},
+        agents_asked={agent.name: agent.started_at for agent in before.agents if agent.online},
     )
     for robot, (fleet_name, agent) in located.items():
         reply = client.restart(agent, p.RestartRequest(fleet=fleet_name, robot=robot))
@@ -347,6 +358,7 @@ def restart(
     while wait:
         view = build_view(*client.status(asked_fleet), time.time())
         outcome.seen = {(row.fleet, row.name): row for row in view.robots if row.fleet in fleets}
+        outcome.agents_seen = {agent.name: agent.started_at for agent in view.agents if agent.online}
         if on_progress is not None:
             on_progress([row for key, row in outcome.seen.items() if key in followed])
         if outcome.ok or outcome.hopeless():

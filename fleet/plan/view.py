@@ -31,6 +31,7 @@ class AgentRow:
     backends: list[str] = field(default_factory=list)
     fleets: list[str] = field(default_factory=list)
     address: str = ""
+    started_at: float = 0.0  # when its process started (time.time()); 0.0 when offline
 
 
 @dataclass
@@ -171,7 +172,16 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         info = status.agent
         agent_row = agents.setdefault(
             info.name,
-            AgentRow(info.name, True, 0.0, info.hostname, info.cores, list(info.backends), address=info.address),
+            AgentRow(
+                info.name,
+                True,
+                0.0,
+                info.hostname,
+                info.cores,
+                list(info.backends),
+                address=info.address,
+                started_at=info.started_at,
+            ),
         )
         if status.fleet is None:
             continue

@@ -6,9 +6,12 @@ runs again; whichever isolation runs them.  An unknown robot is bad input."""
 from __future__ import annotations
 
 import json
+import signal
 
 import pytest
 
+from fleet.client import restart as restart_robots
+from fleet.testing.control_plane import agent_key
 from tests.control.control_helpers import Cluster
 
 pytestmark = pytest.mark.integration
@@ -71,6 +74,29 @@ def test_a_restarted_robot_runs_again_with_new_processes_and_its_live_parameters
     assert unknown.returncode == 2 and unknown.stderr.count("\n") == 1, unknown.stdout + unknown.stderr
     assert "no robot named 'robot9' is deployed" in unknown.stderr
     assert rows(status(cluster))["robot1"]["restarted"] == 1
+
+
+def test_a_restart_ends_when_its_agent_was_started_again_meanwhile(host_a):
+    """The agent is SIGKILLed and started again right after it answered: the new agent process
+    counts restarts from 0, so the number it answered never comes; it starts its robots anew
+    instead, and the restart ends once they run under it."""
+    cluster = host_a
+    deploy(cluster, "process")
+    old_pids = {node["pid"] for node in rows(status(cluster))["robot1"]["nodes"]}
+    agents_killed: list[int] = []
+
+    def agent_restarts(_rows) -> None:
+        if not agents_killed:
+            agents_killed.append(cluster.kill(agent_key("hostA"), signal.SIGKILL))
+            cluster.start_agent("hostA")
+
+    with cluster.client() as control:
+        outcome = restart_robots(control, ["robot1"], timeout=150, on_progress=agent_restarts)
+    assert agents_killed and not outcome.timed_out, outcome.to_json()
+    assert outcome.ok, outcome.to_json()
+    after = rows(status(cluster))
+    assert after["robot1"]["state"] == "running" and after["robot1"]["restarted"] == 0, after["robot1"]
+    assert not old_pids & {node["pid"] for node in after["robot1"]["nodes"]}
 
 
 def test_a_restarted_hosted_robot_is_made_again_in_its_host_and_no_other_is(host_a):
