@@ -4,7 +4,7 @@
 `rack_a` and `rack_b` each run an agent with two robots.  Everything goes through the `fleet`
 command run on `sim`, as a user at the workstation would.  Checked: every robot moves; a robot
 on one computer meets a robot from another (its safety node stops it on its lidar, and the other
-bumps into it); `fleet param` and `fleet logs` reach robots on other computers; a frozen world
+bumps into it); `fleet param`, `fleet logs` and `fleet restart` reach robots on other computers; a frozen world
 makes every robot `degraded` with the reason, and they recover; a pulled cable shows in status
 and the robots come back when it is plugged in; nothing is left running.
 """
@@ -330,6 +330,16 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     # Parameters and logs of a robot on another computer.
     done = fleet.fleet("param", "set", "b2", "controller", "max_speed", "0.7", timeout=90)
     assert done.returncode == 0, done.stdout + done.stderr
+    done = fleet.fleet("param", "get", "b2", "controller", "max_speed", timeout=90)
+    assert done.returncode == 0 and "0.7" in done.stdout, done.stdout + done.stderr
+
+    # A restart of a robot on another computer: new processes, running again, its live parameter kept.
+    old_pids = {node["pid"] for node in fleet.robots()["b2"]["nodes"]}
+    done = fleet.fleet("restart", "b2", "--json", "--timeout", "90", timeout=120)
+    assert done.returncode == 0 and json.loads(done.stdout)["ok"], done.stdout + done.stderr
+    b2 = fleet.robots()["b2"]
+    assert b2["state"] == "running" and b2["restarted"] == 1, b2
+    assert old_pids and not old_pids & {node["pid"] for node in b2["nodes"]}, (old_pids, b2["nodes"])
     done = fleet.fleet("param", "get", "b2", "controller", "max_speed", timeout=90)
     assert done.returncode == 0 and "0.7" in done.stdout, done.stdout + done.stderr
 
