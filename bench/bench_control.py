@@ -364,6 +364,17 @@ def baseline(runs: int, results: dict) -> None:
         timed([sys.executable, "-c", "pass"], dict(os.environ))[0] for _ in range(runs)
     ]
     results["fleet_help"] = [timed([sys.executable, "-m", "fleet", "--help"], env)[0] for _ in range(runs)]
+    for key, modules in STATUS_IMPORTS.items():
+        results[key] = [timed([sys.executable, "-c", f"import {modules}"], env)[0] for _ in range(runs)]
+
+
+# What `fleet status --json` imports before it asks anything: the libraries alone, then with
+# fleet's own modules (the CLI, the client, the protocol's models, the view); both start-ups
+# with the ROS wheels' re-exec, as a user's shell gives it.
+STATUS_IMPORTS = {
+    "import_libraries": "typer, typer._adapters, pydantic, zenoh",
+    "import_status_path": "fleet.cli, fleet.client, fleet.plan, typer._adapters, zenoh",
+}
 
 
 # -- report ------------------------------------------------------------------------------------
@@ -390,6 +401,10 @@ def report(results: dict, runs: int) -> str:
         f"| python start-up alone (`python -c pass`, ROS wheels' re-exec included) | {med(results['python_start'])} | {spread(results['python_start'])} | |",
         f"| python start-up without that re-exec (guard variable inherited) | {med(results['python_start_no_reexec'])} | {spread(results['python_start_no_reexec'])} | |",
         f"| `fleet --help` | {med(results['fleet_help'])} | {spread(results['fleet_help'])} | |",
+        *(
+            f"| python start-up and `import {STATUS_IMPORTS[key]}` | {med(results[key])} | {spread(results[key])} | |"
+            for key in STATUS_IMPORTS
+        ),
     ]
     deploy = results.get("deploy")
     if "deploy_error" in results:
