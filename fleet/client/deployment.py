@@ -250,7 +250,7 @@ class Restart:
     """`fleet restart`: each robot asked for, by (fleet, name), with its agent and the number of
     its restart there; the robots of their fleets that ran before the restart (a restarted world
     takes its robots' data away for a moment), and every robot of those fleets as last seen.
-    Agents by when their process started: when asked, and as last seen."""
+    Agents by when their process started: the one that answered, and as last seen."""
 
     asked: dict[tuple[str, str], tuple[str, int]]
     waited: bool = True
@@ -352,6 +352,8 @@ def restart(
     for robot, (fleet_name, agent) in located.items():
         reply = client.restart(agent, p.RestartRequest(fleet=fleet_name, robot=robot))
         outcome.asked[(fleet_name, robot)] = (agent, reply.restart)
+        if reply.agent_started_at:  # the process that counts it (it may be newer than the one seen before)
+            outcome.agents_asked[agent] = reply.agent_started_at
     deadline = time.monotonic() + timeout
     followed = set(outcome.asked) | outcome.ran_before
     asked_fleet = next(iter(fleets)) if len(fleets) == 1 else None

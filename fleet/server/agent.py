@@ -822,7 +822,10 @@ class Agent:
             self._restarts_due.add(key)
         log.info("fleet %s: restarting %s, as asked", request.fleet, request.robot)
         self._work.put(request.fleet)
-        yield p.restart_key(request.fleet, self.name), p.encode(p.RestartReply(restart=number))
+        yield (
+            p.restart_key(request.fleet, self.name),
+            p.encode(p.RestartReply(restart=number, agent_started_at=self.info.started_at)),
+        )
 
     def _unit(self, fleet: str, robot: str) -> Unit:
         with self._lock:

@@ -665,6 +665,9 @@ class RestartReply(Message):
     # The number of this restart: the robot's status shows `restarted` at least this once its
     # agent has stopped it and started it again.
     restart: int
+    # AgentInfo.started_at of the agent process that counts it (0.0: not said): an agent started
+    # again since counts from 0 and starts its robots anew.
+    agent_started_at: float = 0.0
 
 
 # How long an agent waits for a node's parameter service: a loaded host needs seconds for

@@ -16,8 +16,9 @@ from fleet.wire import protocol as p
 
 
 class RestartingAgent:
-    """Agent hostA runs robot1; it answers a restart with number 3 and then reports what the
-    test sets: how many restarts it carried out, and when its process started."""
+    """Agent hostA runs robot1; it answers a restart with the next number and when its process
+    started, and then reports what the test sets: how many restarts it carried out, and when its
+    process started."""
 
     def __init__(self) -> None:
         self.started_at = 1000.0
@@ -43,7 +44,7 @@ class RestartingAgent:
 
     def restart(self, agent, request):
         self.asked.append(request)
-        return p.RestartReply(restart=3)
+        return p.RestartReply(restart=self.restarted + 1, agent_started_at=self.started_at)
 
 
 def restart(agent: RestartingAgent, robots: list[str], **options: Any) -> Restart:
@@ -52,9 +53,13 @@ def restart(agent: RestartingAgent, robots: list[str], **options: Any) -> Restar
 
 def test_a_robot_counts_as_back_once_its_agent_carried_out_the_restart_asked():
     agent = RestartingAgent()
-    agent.restarted = 3
-    outcome = restart(agent, ["robot1"], timeout=2.0)
+
+    def carried_out(_rows) -> None:
+        agent.restarted = 3
+
+    outcome = restart(agent, ["robot1"], timeout=2.0, on_progress=carried_out)
     assert agent.asked == [p.RestartRequest(fleet="tiny", robot="robot1")]
+    assert outcome.asked == {("tiny", "robot1"): ("hostA", 3)}
     assert outcome.ok and not outcome.timed_out
 
 
@@ -74,3 +79,28 @@ def test_a_robot_whose_agent_was_started_again_since_is_back_though_the_count_be
     outcome = restart(agent, ["robot1"], timeout=2.0, on_progress=agent_restarts)
     assert not outcome.timed_out
     assert outcome.ok
+
+
+def test_an_agent_started_again_before_it_answered_is_waited_for_by_its_own_count():
+    """The status before the request shows the old agent process; the new one answered (its
+    number 1): the robot is back only once that one has carried out the restart."""
+    agent = RestartingAgent()
+    first = agent.status
+
+    def old_agent_first(fleet=None, timeout=3.0):  # the status taken before the request
+        shown = first(fleet, timeout)
+        agent.started_at, agent.restarted = 2000.0, 0  # then the agent restarts, before the request
+        agent.status = first  # type: ignore[method-assign]
+        return shown
+
+    agent.status = old_agent_first  # type: ignore[method-assign]
+    polls: list[int] = []
+
+    def carried_out_later(_rows) -> None:
+        polls.append(agent.restarted)
+        if len(polls) == 3:
+            agent.restarted = 1
+
+    outcome = restart(agent, ["robot1"], timeout=5.0, on_progress=carried_out_later)
+    assert outcome.asked == {("tiny", "robot1"): ("hostA", 1)}
+    assert outcome.ok and polls == [0, 0, 0, 1], polls
