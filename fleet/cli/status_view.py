@@ -18,7 +18,7 @@ def view_tables(view, agents: bool = True):
     tables = []
     if agents:
         table = make_table(
-            "agent", "state", "last seen", "host", "address", "cores", "backends", "fleets", title="Agents"
+            "agent", "state", "up", "last seen", "host", "address", "cores", "backends", "fleets", title="Agents"
         )
         for row in view.agents:
             state = Text("online", style="green") if row.online else Text("offline", style="red")
@@ -26,6 +26,7 @@ def view_tables(view, agents: bool = True):
             table.add_row(
                 row.name,
                 state,
+                _duration(row.uptime) if row.uptime is not None else "",
                 seen,
                 row.hostname,
                 row.address,
@@ -98,11 +99,15 @@ def _world_line(world):
 
 
 def _ago(seconds: float) -> str:
+    return f"{_duration(seconds)} ago"
+
+
+def _duration(seconds: float) -> str:
     if seconds < 60:
-        return f"{seconds:.0f} s ago"
+        return f"{seconds:.0f} s"
     if seconds < 3600:
-        return f"{seconds / 60:.0f} min ago"
-    return f"{seconds / 3600:.1f} h ago"
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
 
 
 def _generation_time(generation: int) -> str:

@@ -32,6 +32,7 @@ class AgentRow:
     fleets: list[str] = field(default_factory=list)
     address: str = ""
     started_at: float = 0.0  # when its process started (time.time()); 0.0 when offline
+    uptime: float | None = None  # seconds its process has run, by its own clock; None when offline
 
 
 @dataclass
@@ -181,6 +182,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 list(info.backends),
                 address=info.address,
                 started_at=info.started_at,
+                uptime=max(0.0, status.time - info.started_at),  # both its clock: no skew between computers
             ),
         )
         if status.fleet is None:
