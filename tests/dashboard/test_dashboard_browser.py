@@ -110,6 +110,7 @@ def test_dashboard_shows_the_fleet_live(two_robots, tmp_path):
             expect(page.locator("#map text.label", has_text=robot)).to_be_visible()
         expect(page.locator("#map [data-obstacle]")).to_have_count(3)
         expect(page.locator('#agents tr[data-agent="local"] td.state')).to_have_text("online")
+        expect(page.locator('#agents tr[data-agent="local"] td.up')).to_have_text(re.compile(r"^\d+(\.\d)? (s|min|h)$"))
         expect(page.locator(f'#history tr[data-generation="{fleet.generation}"]')).to_have_count(1)
         assert "cmd_vel" in cell(page, "robot1", "flow")
 

@@ -40,9 +40,13 @@ function fill(tbody, rows) { tbody.replaceChildren(...rows); }
 
 function ago(seconds) {
   if (seconds === null || seconds === undefined) return "never";
-  if (seconds < 60) return `${seconds.toFixed(0)} s ago`;
-  if (seconds < 3600) return `${(seconds / 60).toFixed(0)} min ago`;
-  return `${(seconds / 3600).toFixed(1)} h ago`;
+  return `${duration(seconds)} ago`;
+}
+
+function duration(seconds) {
+  if (seconds < 60) return `${seconds.toFixed(0)} s`;
+  if (seconds < 3600) return `${(seconds / 60).toFixed(0)} min`;
+  return `${(seconds / 3600).toFixed(1)} h`;
 }
 
 function formatPose(pose) {
@@ -236,6 +240,7 @@ function renderAgents() {
     const tr = row([
       ["agent", agent.name],
       ["state", agent.online ? "online" : "offline"],
+      ["up", agent.uptime === null || agent.uptime === undefined ? "" : duration(agent.uptime)],
       ["seen", agent.online ? "now" : ago(agent.last_seen)],
       ["host", agent.hostname],
       ["address", agent.address],
