@@ -16,6 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.bytecode import compile_checkout
 from bench.machine import machine_description
+from bench.user_shell import user_env
 
 FLEET = Path(sys.executable).parent / "fleet"
 REPO = Path(__file__).resolve().parent.parent
@@ -25,7 +26,9 @@ def timed(command: list[str], runs: int) -> list[float]:
     times = []
     for _ in range(runs):
         start = time.perf_counter()
-        subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True, cwd=REPO)
+        subprocess.run(
+            command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True, cwd=REPO, env=user_env()
+        )
         times.append(time.perf_counter() - start)
     return times
 

@@ -35,6 +35,7 @@ sys.path.insert(0, str(REPO))
 
 from bench.bytecode import compile_checkout  # noqa: E402
 from bench.machine import machine_description  # noqa: E402
+from bench.user_shell import user_env  # noqa: E402
 from fleet.testing.isolation import reserve_domain_id, ros_environment  # noqa: E402
 from fleet.testing.poll import poll  # noqa: E402
 from tests.control.control_helpers import Cluster  # noqa: E402
@@ -107,12 +108,6 @@ def _cmdline(process) -> list[str]:
         return process.cmdline()
     except Exception:
         return []
-
-
-def user_env(env: dict[str, str]) -> dict[str, str]:
-    """The environment of a user's shell: the ROS wheels' start-up re-exec not done yet (a
-    process started by another Python of this venv inherits its guard variable and skips it)."""
-    return {key: value for key, value in env.items() if key != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
 
 
 def fleet_spec(cluster: Cluster, domain_id: int) -> Path:
@@ -358,7 +353,7 @@ def agents_cpu(root: Path, seconds: float = 10.0) -> float:
 
 
 def baseline(runs: int, results: dict) -> None:
-    env = user_env(dict(os.environ))
+    env = user_env()
     results["python_start"] = [timed([sys.executable, "-c", "pass"], env)[0] for _ in range(runs)]
     results["python_start_no_reexec"] = [
         timed([sys.executable, "-c", "pass"], dict(os.environ))[0] for _ in range(runs)

@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.bytecode import compile_checkout
 from bench.machine import machine_description
+from bench.user_shell import user_env
 from fleet.cli.render_cmd import write_bundles
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
@@ -95,6 +96,7 @@ def time_cli_render(spec_path: Path) -> tuple[float, float]:
         [str(Path(sys.executable).parent / "fleet"), "render", str(spec_path), "--json"],
         stdout=subprocess.DEVNULL,
         check=True,
+        env=user_env(),
     )
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
