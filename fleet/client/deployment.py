@@ -25,11 +25,11 @@ from fleet.plan import (
     requests_for,
     with_planned_agents,
 )
+from fleet.plan.discovery import DiscoveryPlan
 from fleet.rules import STABLE_AFTER
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
-    from fleet.dataplane.discovery import DiscoveryPlan  # brings psutil: not on `fleet status`'s path
     from fleet.expand.expansion import Expansion
 
 POLL_INTERVAL = 0.1

@@ -8,15 +8,12 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING
 
+from fleet.plan.discovery import DiscoveryPlan, local_servers, plan_discovery
 from fleet.plan.view import FleetView
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
-    from fleet.dataplane.discovery import DiscoveryPlan
     from fleet.expand.expansion import Expansion
-
-# fleet.dataplane.discovery is imported where it is used: it brings psutil (its server's process),
-# which `fleet status` and the other commands that only read the plan's view have no use for.
 
 
 def new_generation() -> int:
@@ -51,8 +48,6 @@ def requests_for(
         for agent, bundles in sorted(by_agent.items())
     ]
     if expansion.transport == "zenoh":  # each agent its own discovery server, bridges between them
-        from fleet.dataplane.discovery import local_servers
-
         if discovery is not None:
             servers = discovery.local
         else:
@@ -104,8 +99,6 @@ def with_planned_agents(
 def discovery_for(expansion: Expansion, view: FleetView) -> DiscoveryPlan:
     """Where the fleet's discovery server runs, from the agents online in `view` (pure).  With the
     zenoh transport: the world agent's own (the one a test probe on its computer joins)."""
-    from fleet.dataplane.discovery import DiscoveryPlan, local_servers, plan_discovery
-
     agents = sorted({bundle.agent for bundle in expansion.bundles})
     if expansion.transport == "zenoh":
         host = _world_agent(expansion) or (agents[0] if agents else None)

@@ -5,13 +5,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from fleet.plan.discovery import DiscoveryPlan
 from fleet.plan.parameters import ParameterChange, parameter_changes
 from fleet.plan.view import FleetView, RobotRow
 from fleet.rules import PARAMS_SUFFIX, WORLD_DESCRIPTION
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
-    from fleet.dataplane.discovery import DiscoveryPlan
     from fleet.expand.bundle import Bundle
     from fleet.expand.expansion import Expansion
     from fleet.world.description import Pose2D

@@ -6,7 +6,7 @@ from typing import Literal
 
 import pytest
 
-from fleet.dataplane.discovery import DiscoveryPlan, plan_discovery
+from fleet.plan.discovery import DiscoveryPlan, plan_discovery
 from fleet.plan.view import NO_COMMANDS, STARTUP_GRACE, WORLD_SILENT, build_view
 from fleet.runtime.environment import SERVER_SLOTS, discovery_server_port, ros_environment
 from fleet.wire import protocol as p
@@ -283,7 +283,7 @@ def test_zenoh_bridges_carry_each_remote_robot_both_ways_and_the_clock():
 
 
 def test_with_zenoh_every_agent_gets_its_own_loopback_discovery_server():
-    from fleet.dataplane.discovery import local_servers
+    from fleet.plan.discovery import local_servers
 
     servers = local_servers(["sim", "rack_b", "rack_a"], 7)
     assert len(set(servers.values())) == 3 and all(s.startswith("127.0.0.1:") for s in servers.values())
@@ -293,7 +293,7 @@ def test_with_zenoh_every_agent_gets_its_own_loopback_discovery_server():
 
 def test_with_zenoh_an_agent_added_or_removed_moves_no_other_agents_server():
     """A moved server restarts every robot of its agent: adding a computer must not restart the world."""
-    from fleet.dataplane.discovery import local_servers
+    from fleet.plan.discovery import local_servers
 
     agents = [f"rack_{n}" for n in range(6)] + ["sim"]
     hostnames = {agent: agent for agent in agents}  # one computer each
@@ -304,7 +304,7 @@ def test_with_zenoh_an_agent_added_or_removed_moves_no_other_agents_server():
 
 
 def test_with_zenoh_agents_sharing_a_computer_get_distinct_servers():
-    from fleet.dataplane.discovery import local_servers
+    from fleet.plan.discovery import local_servers
 
     agents = [f"agent{n}" for n in range(SERVER_SLOTS)]
     for hostnames in ({}, dict.fromkeys(agents, "vm")):  # unknown hostnames count as one computer

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import yaml
 
-from fleet.dataplane.discovery import DiscoveryPlan
 from fleet.expand import expand_fleet
 from fleet.plan import build_view, diff, requests_for
+from fleet.plan.discovery import DiscoveryPlan
 from fleet.plan.parameters import ParameterChange, bundle_parameters, parameter_changes
 from fleet.spec import load_spec
 from fleet.wire import protocol as p
