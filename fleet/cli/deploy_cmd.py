@@ -108,6 +108,8 @@ def deploy(
         _print_problems(outcome.problems)
     else:
         _print_outcome(outcome, console())
+        if outcome.unreachable:
+            typer.echo(_start_agents_hint(sorted(outcome.unreachable), control.connect[0]), err=True)
     if outcome.problems:
         raise typer.Exit(EXIT_USAGE)  # the spec's templates name what is not there: bad input
     if not outcome.ok:
@@ -252,6 +254,25 @@ def _print_outcome(outcome, out) -> None:
         out.print(labelled("deploy taken", "green", "(not waiting for the robots: `fleet status` shows them)"))
     elif outcome.waited and not (outcome.unreachable or outcome.refused or outcome.superseded_by):
         out.print(labelled("not up", "red", f"waiting longer would not help; not running: {_not_running(outcome)}"))
+
+
+def _start_agents_hint(agents: list[str], endpoint: str) -> str:
+    """How to start the agents a deploy could not reach: the router holds their robots for them."""
+    from fleet.wire.session import on_loopback
+
+    router, address = endpoint, ""
+    if on_loopback(endpoint):  # other computers reach this router at an address of this computer's
+        protocol, port = endpoint.partition("/")[0], endpoint.rpartition(":")[2]
+        router, address = f"{protocol}/ADDRESS:{port}", " (ADDRESS: this computer's, on their network)"
+    local = " ".join(f"--agent {agent}" for agent in agents)
+    if len(agents) == 1:
+        which, where, name = f"agent {agents[0]}", "its computer", agents[0]
+    else:
+        which, where, name = f"agents {', '.join(agents)}", "each one's computer", "NAME"
+    return (
+        f"hint: start {which}: on {where} `fleet agent --name {name} --connect {router}`{address}, "
+        f"see docs/multi-computer.md; or all on this one: `fleet up {local}`"
+    )
 
 
 def _not_running(outcome) -> str:

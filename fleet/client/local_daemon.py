@@ -134,14 +134,13 @@ def connect_or_start(
     `endpoint`) and the spec places robots on the local agent (one of `agents`), start the local
     daemon there first, after telling `announce`.  A spec for other agents is never started here
     by itself (its agents may be other computers): the error says how to run them on this one."""
-    from fleet.wire.session import config_file, default_endpoint
+    from fleet.wire.session import config_file, default_endpoint, on_loopback
 
     try:
         return connect(endpoint, zenoh_config)
     except ControlError:
         default = default_endpoint()
-        on_loopback = any(host in default for host in ("/127.0.0.1:", "/localhost:", "/[::1]:"))
-        if endpoint is not None or not on_loopback:
+        if endpoint is not None or not on_loopback(default):
             raise
         if LOCAL_AGENT not in agents:
             names = sorted(agents)

@@ -70,6 +70,13 @@ def endpoint_problem(endpoint: str) -> str | None:
     return None
 
 
+def on_loopback(endpoint: str) -> bool:
+    """Whether `endpoint` names this computer's loopback (a router only this computer reaches)."""
+    match = _ENDPOINT.fullmatch(endpoint)
+    host = match["address"].rpartition(":")[0] if match else ""
+    return host in ("127.0.0.1", "localhost", "[::1]")
+
+
 def _checked(endpoints: list[str]) -> list[str]:
     for endpoint in endpoints:
         if problem := endpoint_problem(endpoint):
