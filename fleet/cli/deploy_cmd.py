@@ -260,18 +260,20 @@ def _start_agents_hint(agents: list[str], endpoint: str) -> str:
     """How to start the agents a deploy could not reach: the router holds their robots for them."""
     from fleet.wire.session import on_loopback
 
-    router, address = endpoint, ""
-    if on_loopback(endpoint):  # other computers reach this router at an address of this computer's
-        protocol, port = endpoint.partition("/")[0], endpoint.rpartition(":")[2]
-        router, address = f"{protocol}/ADDRESS:{port}", " (ADDRESS: this computer's, on their network)"
-    local = " ".join(f"--agent {agent}" for agent in agents)
     if len(agents) == 1:
         which, where, name = f"agent {agents[0]}", "its computer", agents[0]
     else:
         which, where, name = f"agents {', '.join(agents)}", "each one's computer", "NAME"
+    if not on_loopback(endpoint):
+        command = f"fleet agent --name {name} --connect {endpoint}"
+        return f"hint: start {which}: on {where} `{command}` (docs/multi-computer.md)"
+    # The router is this computer's (the local daemon's): other computers reach it at an address
+    # of this one, and the local daemon can run the agents here.
+    protocol, port = endpoint.partition("/")[0], endpoint.rpartition(":")[2]
+    local = " ".join(f"--agent {agent}" for agent in agents)
     return (
-        f"hint: start {which}: on {where} `fleet agent --name {name} --connect {router}`{address}, "
-        f"see docs/multi-computer.md; or all on this one: `fleet up {local}`"
+        f"hint: start {which}: on {where} `fleet agent --name {name} --connect {protocol}/ADDRESS:{port}` "
+        f"(ADDRESS: this computer's, on their network; docs/multi-computer.md), or all on this one: `fleet up {local}`"
     )
 
 

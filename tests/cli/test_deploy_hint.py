@@ -1,6 +1,6 @@
 """What `fleet deploy` tells a user whose spec names agents that are not connected: how to start
-them, on their computers (the router's address filled in where the deploy knows it) or all on
-this one."""
+them on their computers (the router's address filled in where the deploy knows it), or all on
+this one when the router is this computer's."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from fleet.cli.deploy_cmd import _start_agents_hint
 def test_one_agent_with_the_routers_address():
     hint = _start_agents_hint(["rack_a"], "tls/192.0.2.10:7447")
     assert hint == (
-        "hint: start agent rack_a: on its computer `fleet agent --name rack_a --connect tls/192.0.2.10:7447`, "
-        "see docs/multi-computer.md; or all on this one: `fleet up --agent rack_a`"
+        "hint: start agent rack_a: on its computer `fleet agent --name rack_a --connect tls/192.0.2.10:7447` "
+        "(docs/multi-computer.md)"
     )
 
 
@@ -20,7 +20,7 @@ def test_several_agents_behind_a_loopback_router():
     hint = _start_agents_hint(["rack_a", "sim_host"], "tcp/127.0.0.1:7447")
     assert hint == (
         "hint: start agents rack_a, sim_host: on each one's computer `fleet agent --name NAME --connect "
-        "tcp/ADDRESS:7447` (ADDRESS: this computer's, on their network), see docs/multi-computer.md; "
+        "tcp/ADDRESS:7447` (ADDRESS: this computer's, on their network; docs/multi-computer.md), "
         "or all on this one: `fleet up --agent rack_a --agent sim_host`"
     )
 
