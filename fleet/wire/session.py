@@ -251,7 +251,10 @@ def _hint(config, endpoints: list[str]) -> str:
                 f"give a member's config with --zenoh-config or ${CONFIG_VARIABLE}"
             )
         return "is it running? is its certificate issued by the same authority, for the address dialled?"
-    return f"is it running? if it requires credentials or TLS, give them with --zenoh-config or ${CONFIG_VARIABLE}"
+    credentials = f"if it requires credentials or TLS, give them with --zenoh-config or ${CONFIG_VARIABLE}"
+    if all(on_loopback(endpoint) for endpoint in endpoints):
+        return f"is it running? on this computer `fleet up` starts it, as `fleet deploy` does; {credentials}"
+    return f"is it running? {credentials}"
 
 
 def open_client_retrying(

@@ -37,3 +37,4 @@ def test_unreachable_router_is_one_line():
     assert result.returncode == 1, result
     assert len(result.stderr.splitlines()) == 1, result.stderr
     assert result.stderr.startswith("fleet: error: cannot reach the fleet router at tcp/127.0.0.1:1")
+    assert "on this computer `fleet up` starts it, as `fleet deploy` does" in result.stderr  # a loopback router
