@@ -258,18 +258,19 @@ def _print_outcome(outcome, out) -> None:
 
 def _start_agents_hint(agents: list[str], endpoint: str) -> str:
     """How to start the agents a deploy could not reach: the router holds their robots for them."""
-    from fleet.wire.session import on_loopback
+    from fleet.wire.session import endpoint_parts, on_loopback
 
     if len(agents) == 1:
         which, where, name = f"agent {agents[0]}", "its computer", agents[0]
     else:
         which, where, name = f"agents {', '.join(agents)}", "each one's computer", "NAME"
-    if not on_loopback(endpoint):
+    parts = endpoint_parts(endpoint)
+    if parts is None or not on_loopback(endpoint):
         command = f"fleet agent --name {name} --connect {endpoint}"
         return f"hint: start {which}: on {where} `{command}` (docs/multi-computer.md)"
     # The router is this computer's (the local daemon's): other computers reach it at an address
     # of this one, and the local daemon can run the agents here.
-    protocol, port = endpoint.partition("/")[0], endpoint.rpartition(":")[2]
+    protocol, _, port = parts
     local = " ".join(f"--agent {agent}" for agent in agents)
     return (
         f"hint: start {which}: on {where} `fleet agent --name {name} --connect {protocol}/ADDRESS:{port}` "

@@ -48,15 +48,25 @@ _HOST_NAME = re.compile(
 EXAMPLE = "tcp/10.0.0.1:7447"
 
 
-def endpoint_problem(endpoint: str) -> str | None:
-    """Why `endpoint` is not a Zenoh endpoint fleet can use, or None (port 0: any free port)."""
+def endpoint_parts(endpoint: str) -> tuple[str, str, str] | None:
+    """PROTOCOL/HOST:PORT -> (protocol, host, port), metadata and config left out ("" for a part
+    not written); None when `endpoint` is not of Zenoh's endpoint form."""
     match = _ENDPOINT.fullmatch(endpoint)
     if match is None:
-        return f"endpoint {endpoint!r} is not PROTOCOL/HOST:PORT (such as {EXAMPLE})"
-    if match["protocol"] not in _IP_PROTOCOLS:
-        return None  # unix sockets, serial lines, ...: Zenoh checks its own
+        return None
     host, colon, port = match["address"].rpartition(":")
-    if not colon or not port.isdigit() or int(port) > 65535:
+    return match["protocol"], host, port if colon else ""
+
+
+def endpoint_problem(endpoint: str) -> str | None:
+    """Why `endpoint` is not a Zenoh endpoint fleet can use, or None (port 0: any free port)."""
+    parts = endpoint_parts(endpoint)
+    if parts is None:
+        return f"endpoint {endpoint!r} is not PROTOCOL/HOST:PORT (such as {EXAMPLE})"
+    protocol, host, port = parts
+    if protocol not in _IP_PROTOCOLS:
+        return None  # unix sockets, serial lines, ...: Zenoh checks its own
+    if not port.isdigit() or int(port) > 65535:
         return f"endpoint {endpoint!r} has no port from 0 to 65535 (such as {EXAMPLE})"
     try:
         if host.startswith("[") and host.endswith("]"):
@@ -72,9 +82,8 @@ def endpoint_problem(endpoint: str) -> str | None:
 
 def on_loopback(endpoint: str) -> bool:
     """Whether `endpoint` names this computer's loopback (a router only this computer reaches)."""
-    match = _ENDPOINT.fullmatch(endpoint)
-    host = match["address"].rpartition(":")[0] if match else ""
-    return host in ("127.0.0.1", "localhost", "[::1]")
+    parts = endpoint_parts(endpoint)
+    return parts is not None and parts[1] in ("127.0.0.1", "localhost", "[::1]")
 
 
 def _checked(endpoints: list[str]) -> list[str]:

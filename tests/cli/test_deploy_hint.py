@@ -30,3 +30,8 @@ def test_which_endpoints_are_this_computers_loopback():
 
     assert [on_loopback(e) for e in ("tcp/127.0.0.1:7447", "tls/localhost:7447", "tcp/[::1]:7447")] == [True] * 3
     assert [on_loopback(e) for e in ("tcp/10.0.0.1:7447", "tcp/host-127.0.0.1.example:7447", "nonsense")] == [False] * 3
+
+
+def test_a_loopback_routers_port_without_its_metadata():
+    hint = _start_agents_hint(["rack_a"], "tcp/127.0.0.1:7448#iface=lo")
+    assert "`fleet agent --name rack_a --connect tcp/ADDRESS:7448` (ADDRESS:" in hint
