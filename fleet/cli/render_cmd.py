@@ -55,6 +55,9 @@ def render(
     expansion = load_and_expand(spec, set_)
     if explain is not None:
         data = explain_data(expansion, explain)
+        # "effective" is only true if the node reads the value: a typo'd name or a node started
+        # without the parameter file is warned about here too
+        print_warnings(expansion.warnings)
         print_json(data) if json else print_explain(data, console())
         return
     if output is None:

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import difflib
 import time
 
 from fleet.client.control_client import ControlClient
 from fleet.errors import BadRequest, ControlError, FleetError
 from fleet.plan.view import FleetView, build_view, known_fleets
 from fleet.wire import protocol as p
+
+LISTED_ROBOTS = 10  # an error line names at most this many robots
 
 
 def fleet_status(client: ControlClient, fleet: str | None) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
@@ -30,7 +33,11 @@ def robot_place(view: FleetView, robot: str, fleet: str | None) -> tuple[str, st
     """(fleet, agent) running `robot` in `view`; BadRequest for a robot it does not have."""
     found = view.find_robot(robot, fleet)
     if not found:
-        raise BadRequest(f"no robot named {robot!r} is deployed" + (f" in fleet {fleet}" if fleet else ""))
+        raise BadRequest(
+            f"no robot named {robot!r} is deployed"
+            + (f" in fleet {fleet}" if fleet else "")
+            + _robots_hint(view, robot, fleet)
+        )
     rows = [row for row in found if row.state not in ("pending", "offline")]
     if not rows:
         states = ", ".join(f"{row.state} in fleet {row.fleet}" for row in found)
@@ -38,6 +45,15 @@ def robot_place(view: FleetView, robot: str, fleet: str | None) -> tuple[str, st
     if len(rows) > 1:
         raise FleetError(f"robot {robot!r} exists in fleets {', '.join(r.fleet for r in rows)}: pick one with --fleet")
     return rows[0].fleet, rows[0].agent
+
+
+def _robots_hint(view: FleetView, robot: str, fleet: str | None) -> str:
+    """The robots deployed, when a line can hold them; in a large fleet the closest name."""
+    names = sorted({row.name for row in view.robots if fleet is None or row.fleet == fleet})
+    if len(names) <= LISTED_ROBOTS:
+        return f" (robots: {', '.join(names)})" if names else ""
+    guess = difflib.get_close_matches(robot, names, n=1)
+    return f" (did you mean {guess[0]!r}?)" if guess else ""
 
 
 def tool_environment(view: FleetView, fleet: str | None, agent: str | None) -> dict[str, str]:

@@ -805,7 +805,7 @@ class Agent:
         request = p.decode(_payload(query), p.LogsRequest)
         unit = self._unit(request.fleet, request.robot)
         if request.node and request.node not in unit.node_names():
-            raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
+            raise _no_such_node(request.robot, request.node, unit)
         nodes = [request.node] if request.node else unit.node_names()
         yield p.logs_key(request.fleet, self.name), p.encode(robot_logs(nodes, unit.log_file, request))
 
@@ -846,7 +846,7 @@ class Agent:
             if state.fqn and request.node in ("", state.name, state.fqn)
         }
         if request.node and not nodes:
-            raise p.ProtocolError(f"robot {request.robot} has no node {request.node!r}", "not_found")
+            raise _no_such_node(request.robot, request.node, unit)
         if request.op == "list":
             reply = self._list_parameters(request, nodes, unit.env)
         else:
@@ -890,6 +890,10 @@ class Agent:
 def _payload(query) -> bytes | None:
     payload = query.payload
     return None if payload is None else payload.to_bytes()
+
+
+def _no_such_node(robot: str, node: str, unit: Unit) -> p.ProtocolError:
+    return p.ProtocolError(f"robot {robot} has no node {node!r} (nodes: {', '.join(unit.node_names())})", "not_found")
 
 
 def call_parameter_service(fqns: list[str], request: p.ParamRequest, env: dict[str, str]) -> p.ParamReply:

@@ -90,11 +90,21 @@ def test_a_robot_nobody_deployed_is_bad_input_and_one_not_running_a_failure(monk
     monkeypatch.setattr("fleet.client.robots.build_view", lambda *args: FleetView(agents=[], robots=[running, pending]))
     client = SimpleNamespace(status=lambda fleet: ([], []))
     assert locate_robot(client, "robot1", None) == ("f", "local")  # type: ignore[arg-type]
-    with pytest.raises(BadRequest, match="no robot named 'robot9' is deployed"):
+    with pytest.raises(BadRequest, match=r"no robot named 'robot9' is deployed \(robots: robot1, robot2\)$"):
         locate_robot(client, "robot9", None)  # type: ignore[arg-type]
     with pytest.raises(ControlError, match=r"robot 'robot2' is not running \(pending in fleet f\)") as failure:
         locate_robot(client, "robot2", None)  # type: ignore[arg-type]
     assert failure.value.exit_code == EXIT_FAILURE
+
+
+def test_a_mistyped_robot_in_a_large_fleet_gets_the_closest_name(monkeypatch):
+    rows = [RobotRow(fleet="f", name=f"rack{i:02d}", kind="robot", agent="local", state="running") for i in range(40)]
+    monkeypatch.setattr("fleet.client.robots.build_view", lambda *args: FleetView(agents=[], robots=rows))
+    client = SimpleNamespace(status=lambda fleet: ([], []))
+    with pytest.raises(BadRequest, match=r"no robot named 'rakc07' is deployed \(did you mean 'rack07'\?\)$"):
+        locate_robot(client, "rakc07", None)  # type: ignore[arg-type]
+    with pytest.raises(BadRequest, match=r"no robot named 'world' is deployed$"):
+        locate_robot(client, "world", None)  # type: ignore[arg-type]
 
 
 def test_a_refused_apply_names_its_agent():

@@ -74,9 +74,11 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     for args in (["list", "robot1", "no_such_node"], ["get", "robot1", "no_such_node", "max_speed"]):
         no_node = param(cluster, *args)
         assert no_node.returncode == 2, no_node.stderr
-        assert no_node.stderr == "fleet: error: <command line>: robot robot1 has no node 'no_such_node'\n"
+        assert no_node.stderr == (
+            "fleet: error: <command line>: robot robot1 has no node 'no_such_node' (nodes: controller)\n"
+        )
     no_node = cluster.cli("logs", "robot1", "no_such_node", "--connect", cluster.endpoint)
-    assert no_node.returncode == 2 and "has no node 'no_such_node'" in no_node.stderr, no_node.stderr
+    assert no_node.returncode == 2 and "has no node 'no_such_node' (nodes: " in no_node.stderr, no_node.stderr
     no_robot = param(cluster, "get", "robot9", "controller", "max_speed")
     assert no_robot.returncode == 2 and "no robot named 'robot9' is deployed" in no_robot.stderr, no_robot.stderr
 

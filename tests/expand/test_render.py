@@ -176,6 +176,17 @@ def test_explain_cli(tmp_path, capsys):
     assert [layer["value"] for layer in data["layers"]] == [0.5, 0.4, 0.8, 1.2]
 
 
+def test_explain_warns_of_a_parameter_the_template_does_not_list(capsys):
+    """The layers of a mistyped name still end in "effective"; the warning says the node may
+    never read it, as render and deploy do."""
+    args = ["render", str(FLEETS / "two_robots.yaml"), "--explain", "robot1.controller.max_sped"]
+    assert run_fleet([*args, "--set", "robot1.controller.max_sped=1.0", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["layers"][-1]["layer"] == "--set"
+    assert "controller.max_sped is not a parameter of the template's controller defaults" in captured.err
+    assert "did you mean 'max_speed'?" in captured.err
+
+
 def test_explain_names_the_files_fleet_found_relative_to_the_working_directory(capsys, monkeypatch):
     """As a compiler names the files it found: the built-in template from the directory holding
     it (`templates/...` from the checkout), the spec as it was given."""
