@@ -163,7 +163,7 @@ def param_list(
         print_json(
             {"robot": robot, "parameters": reply.parameters, "set_live": reply.set_live, "unanswered": reply.unanswered}
         )
-    else:
+    elif reply.parameters:  # none when every node asked for is unanswered: the errors alone say so
         rows = table("node", "parameter", "value", "", title=f"Parameters of {robot}")
         for node_name, values in sorted(reply.parameters.items()):
             live = set(reply.set_live.get(node_name, []))

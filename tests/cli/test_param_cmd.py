@@ -100,3 +100,14 @@ def test_a_request_that_names_no_parameter_is_one_clean_line(monkeypatch, capsys
     assert (code, out) == (2, "")
     assert err.startswith(f"fleet: error: <command line>: invalid parameter request: {problem}"), err
     assert err.count("\n") == 1 and "Value error" not in err
+
+
+def test_list_of_a_node_that_does_not_answer_is_its_error_alone(fleet, capsys):
+    """No empty table above the error: the one node asked for did not answer."""
+    fleet.reply = p.ParamReply(ok=True, unanswered={"controller": "it has no parameter services (not running)"})
+    code, out, stderr = run_cli(["param", "list", "robot1", "controller"], capsys)
+    assert (code, out) == (1, "")
+    assert stderr == "fleet: error: robot1/controller: it has no parameter services (not running)\n"
+    fleet.reply = p.ParamReply(ok=True, parameters={"battery": {"capacity": 50.0}}, unanswered={"controller": "gone"})
+    code, out, stderr = run_cli(["param", "list", "robot1"], capsys)
+    assert code == 1 and "capacity" in out and stderr == "fleet: error: robot1/controller: gone\n"
