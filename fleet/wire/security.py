@@ -6,7 +6,8 @@
   (protocol.agent_key_exprs) and query other agents' status, while operators' certificates reach every key of the fleet;
 - agent-<name>.json5 and operator-<name>.json5: connect with that member's certificate.
 Everything not allowed is denied.  The files are plain Zenoh configs: give them to
-`--zenoh-config` (or FLEET_ZENOH_CONFIG); endpoints then use the `tls/` scheme.
+`--zenoh-config` (or FLEET_ZENOH_CONFIG); endpoints then use the `tls/` scheme.  They name the
+certificates by file name alone: fleet reads a relative name from the config's own directory.
 """
 
 from __future__ import annotations
@@ -33,8 +34,10 @@ ALL_MESSAGES = [
 
 
 def _tls(directory: Path, member: str, listen: bool) -> dict:
-    own_key, own_cert = str(certs.key_path(directory, member)), str(certs.cert_path(directory, member))
-    tls: dict = {"root_ca_certificate": str(directory / certs.CA_CERT), "enable_mtls": True}
+    # File names relative to the config, which lies beside them: fleet reads them from there
+    # (fleet.wire.session.FILE_KEYS), so a computer's files can be copied anywhere together.
+    own_key, own_cert = certs.key_path(directory, member).name, certs.cert_path(directory, member).name
+    tls: dict = {"root_ca_certificate": certs.CA_CERT, "enable_mtls": True}
     if listen:
         tls.update(listen_private_key=own_key, listen_certificate=own_cert)
     tls.update(connect_private_key=own_key, connect_certificate=own_cert)

@@ -107,6 +107,21 @@ def config_file(explicit: str | Path | None) -> Path | None:
     return path
 
 
+# The keys of a Zenoh config that name files.  Zenoh reads a relative name from the working
+# directory, which an agent leaves for its state directory as daemons do; fleet reads it from the
+# config file's directory instead (as kubectl reads a kubeconfig's), so that a computer's config
+# and certificates work from wherever they were copied, whatever directory a command runs in.
+_TLS = "transport/link/tls/"
+FILE_KEYS = (
+    f"{_TLS}root_ca_certificate",
+    f"{_TLS}listen_certificate",
+    f"{_TLS}listen_private_key",
+    f"{_TLS}connect_certificate",
+    f"{_TLS}connect_private_key",
+    "transport/auth/usrpwd/dictionary_file",
+)
+
+
 def _base_config(user_config: Path | None):
     import zenoh
 
@@ -116,23 +131,37 @@ def _base_config(user_config: Path | None):
         config = zenoh.Config.from_file(str(user_config))
     except Exception as error:  # zenoh raises ZError with the parser's message
         raise FleetError(f"invalid Zenoh config: {error}", Location(user_config)) from None
-    _check_tls_files(config)
+    _read_files_beside(config, Path(os.path.abspath(user_config)).parent)  # lexical, as kubectl's
+    try:
+        _check_tls_files(config)
+    except FleetError as error:  # a certificate's problem, at the place of the config that names it
+        raise FleetError(error.message, Location(user_config)) from None
     return config
+
+
+def _read_files_beside(config, directory: Path) -> None:
+    for key in FILE_KEYS:
+        name = json.loads(config.get_json(key))
+        if isinstance(name, str) and name:
+            config.insert_json5(key, json.dumps(str(directory / Path(name).expanduser())))
 
 
 def _check_tls_files(config) -> None:
     """Say which certificate is unusable and why, before Zenoh fails a handshake naming none."""
     from fleet.wire.certificates import check_certificate, check_key
 
-    tls = json.loads(config.get_json("transport/link/tls"))
-    authority = Path(tls["root_ca_certificate"]) if tls.get("root_ca_certificate") else None
+    def named(key: str) -> Path | None:
+        name = json.loads(config.get_json(_TLS + key))
+        return Path(name) if name else None
+
+    authority = named("root_ca_certificate")
     if authority is not None:
         check_certificate(authority, None)
     for role in ("listen", "connect"):
-        if tls.get(f"{role}_certificate"):
-            check_certificate(Path(tls[f"{role}_certificate"]), authority)
-        if tls.get(f"{role}_private_key"):
-            check_key(Path(tls[f"{role}_private_key"]))
+        if certificate := named(f"{role}_certificate"):
+            check_certificate(certificate, authority)
+        if key := named(f"{role}_private_key"):
+            check_key(key)
 
 
 def check_identity(name: str, user_config: Path | None) -> None:

@@ -109,9 +109,16 @@ class Cluster(ControlPlane):
         with self.client(config) as client:
             return build_view(*client.status(fleet), time.time())
 
-    def cli(self, *args: str, timeout: float = 60, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    def cli(
+        self, *args: str, timeout: float = 60, env: dict[str, str] | None = None, cwd: Path | None = None
+    ) -> subprocess.CompletedProcess:
         return subprocess.run(
-            [sys.executable, "-m", "fleet", *args], env=env or self.env, capture_output=True, text=True, timeout=timeout
+            [sys.executable, "-m", "fleet", *args],
+            env=env or self.env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=cwd,
         )
 
     def wait_agents_online(self, *names: str, timeout: float = 15.0) -> None:

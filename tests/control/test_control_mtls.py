@@ -10,6 +10,7 @@ import datetime
 import json
 import shutil
 import time
+from pathlib import Path
 
 import psutil
 import pytest
@@ -25,18 +26,19 @@ pytestmark = pytest.mark.integration
 
 @pytest.fixture
 def secured(fresh_cluster, tmp_path):
-    """`fleet certs` for the tiny fleet, and its router and agents running with them."""
+    """`fleet certs` for the tiny fleet, and its router and agents running with them.  As the
+    guide has it: `--out certs` and `--zenoh-config certs/...` relative to the directory the
+    commands run in, which agents leave for their state directories."""
     cluster = fresh_cluster
     spec = cluster.spec()
-    certs = tmp_path / "certs"
-    made = cluster.cli("certs", str(spec), "--out", str(certs), "--json")
+    made = cluster.cli("certs", str(spec), "--out", "certs", "--json", cwd=cluster.root)
     assert made.returncode == 0, made.stdout + made.stderr
     assert {"ca.pem", "router.pem", "hostA.pem", "hostB.pem", "operator.pem"} <= set(json.loads(made.stdout)["created"])
     cluster.scheme = "tls"
-    cluster.start_router(zenoh_config=certs / "router.json5")
-    cluster.start_agent("hostA", certs / "agent-hostA.json5")
-    cluster.start_agent("hostB", certs / "agent-hostB.json5")
-    return cluster, spec, certs
+    cluster.start_router(zenoh_config=Path("certs/router.json5"))  # processes start in cluster.root
+    cluster.start_agent("hostA", Path("certs/agent-hostA.json5"))
+    cluster.start_agent("hostB", Path("certs/agent-hostB.json5"))
+    return cluster, spec, cluster.root / "certs"
 
 
 def tls_router(cluster, spec, tmp_path):
@@ -85,8 +87,8 @@ def test_mutual_tls_and_access_rules(secured, tmp_path):
     mixed["transport"]["link"]["tls"].update(
         connect_certificate=str(other / "operator.pem"), connect_private_key=str(other / "operator.key")
     )
-    (tmp_path / "mixed.json5").write_text(json.dumps(mixed))
-    refused = fleet_cli(cluster, "status", config=tmp_path / "mixed.json5")
+    (certs / "mixed.json5").write_text(json.dumps(mixed))
+    refused = fleet_cli(cluster, "status", config=certs / "mixed.json5")
     assert refused.returncode == 2, refused.stderr
     assert "operator.pem" in refused.stderr and "fleet 'elsewhere'" in refused.stderr, refused.stderr
 
@@ -100,14 +102,14 @@ def test_mutual_tls_and_access_rules(secured, tmp_path):
     late["transport"]["link"]["tls"].update(
         connect_certificate=str(expired / "late.pem"), connect_private_key=str(expired / "late.key")
     )
-    (tmp_path / "late.json5").write_text(json.dumps(late))
-    refused = fleet_cli(cluster, "status", config=tmp_path / "late.json5")
+    (certs / "late.json5").write_text(json.dumps(late))
+    refused = fleet_cli(cluster, "status", config=certs / "late.json5")
     assert refused.returncode == 2 and "late.pem" in refused.stderr and "expired on 2020-01-02" in refused.stderr
 
     # An unreadable certificate (a directory where the file should be).
     late["transport"]["link"]["tls"]["connect_certificate"] = str(expired)
-    (tmp_path / "late.json5").write_text(json.dumps(late))
-    refused = fleet_cli(cluster, "status", config=tmp_path / "late.json5")
+    (certs / "late.json5").write_text(json.dumps(late))
+    refused = fleet_cli(cluster, "status", config=certs / "late.json5")
     assert refused.returncode == 2 and "cannot read certificate" in refused.stderr, refused.stderr
 
     # An agent's certificate reaches its own keys only: hostA may ask its own agent for logs,
@@ -157,8 +159,8 @@ def test_refused_session_is_a_control_error(fresh_cluster, tmp_path):
     c.issue(other, c.Member("hostA"))
     config = json.loads((certs / "agent-hostA.json5").read_text())
     config["transport"]["link"]["tls"]["connect_certificate"] = str(other / "hostA.pem")
-    (tmp_path / "bad-agent.json5").write_text(json.dumps(config))
-    cluster.start_agent("hostA", tmp_path / "bad-agent.json5")
+    (certs / "bad-agent.json5").write_text(json.dumps(config))
+    cluster.start_agent("hostA", certs / "bad-agent.json5")
     process = cluster.processes["agent-hostA"]
     assert process.wait(timeout=30) == 2
     assert "hostA.pem" in cluster.log("agent-hostA") and "fleet 'elsewhere'" in cluster.log("agent-hostA")
