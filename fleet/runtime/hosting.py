@@ -9,16 +9,13 @@ its robots, each of which counts a restart.
 
 Every host has a thread of its own that spawns it (the kernel SIGKILLs a child when the thread
 that forked it exits, see fleet.runtime.processes), talks to it, and splits its output into one
-log per hosted node: rcutils prints each line with the node's logger name, which is its fully
-qualified name with dots (`/robot1/controller` logs as `robot1.controller`); the lines that
-follow without such a prefix (a traceback) belong to the same logger.
+log per hosted node by the logger that printed each line (fleet.runtime.node_log).
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import re
 import shutil
 import signal
 import socket
@@ -32,13 +29,11 @@ from typing import IO, Any
 
 from fleet.runtime import ament
 from fleet.runtime.launch_file import NodeLaunch
-from fleet.runtime.node_log import ProcessOutput
+from fleet.runtime.node_log import LOG_FORMAT, ProcessOutput, belongs_to, logger_name, logger_of
 from fleet.runtime.processes import group_exists, signal_group, spawn, stop_all
 from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, backoff_delay, ended_problem
 
 HOST_MODULE = "fleet.nodes.host"
-LOG_FORMAT = "[{severity}] [{time}] [{name}]: {message}"  # the rcutils default, fixed for the split
-LOG_LINE = re.compile(r"^\[[A-Z]+\] \[[0-9.]+\] \[([^\]]+)\]: ")
 CONNECT_TIMEOUT = 60.0  # s: rclpy start-up of a host on a loaded machine
 REPLY_TIMEOUT = 60.0  # s: creating a robot's nodes on a loaded machine
 POLL = 0.5  # s between status requests (and liveness checks) of a host
@@ -46,11 +41,6 @@ STOP_TIMEOUTS = (5.0, 5.0)  # SIGINT, then SIGTERM after the first, SIGKILL afte
 
 
 HOST_STATES = {"running": RUNNING, "backoff": BACKOFF, "failed": FAILED}  # a host's word for a robot -> ours
-
-
-def logger_name(fqn: str) -> str:
-    """The rcutils logger of a node: `/robot1/controller` -> `robot1.controller`."""
-    return fqn.strip("/").replace("/", ".")
 
 
 def node_key(node: NodeLaunch) -> str:
@@ -329,9 +319,9 @@ class HostProcess:
         with stream:
             for raw in iter(stream.readline, b""):
                 line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
-                match = LOG_LINE.match(line)
-                if match:
-                    target = self._output_of(match.group(1))
+                logger = logger_of(line)
+                if logger is not None:
+                    target = self._output_of(logger)
                 target.add(line)
 
     def _output_of(self, logger: str) -> ProcessOutput:
@@ -339,7 +329,7 @@ class HostProcess:
         with self._lock:
             for robot in self.robots.values():
                 for name, output in robot.loggers.items():
-                    if logger == name or logger.startswith(name + "."):
+                    if belongs_to(logger, name):
                         return output
         return self.output
 

@@ -1,11 +1,18 @@
-"""Per-process output: a rotating log file, the last lines in memory, and an optional echo."""
+"""Per-process output: a rotating log file, the last lines in memory, and an optional echo; and
+which node printed a line of a process that several nodes share.
+
+rcutils prints each line with the node's logger name, its fully qualified name with dots
+(`/robot1/controller` logs as `robot1.controller`); the lines that follow without such a prefix
+(a traceback) belong to the same logger.
+"""
 
 from __future__ import annotations
 
 import collections
 import logging
+import re
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from logging.handlers import RotatingFileHandler
 from pathlib import Path
 from typing import IO
@@ -13,6 +20,38 @@ from typing import IO
 MAX_BYTES = 5 * 1024 * 1024
 BACKUPS = 3
 TAIL_LINES = 1000
+LOG_FORMAT = "[{severity}] [{time}] [{name}]: {message}"  # the rcutils default, fixed where fleet splits
+LOG_LINE = re.compile(r"^\[[A-Z]+\] \[[0-9.]+\] \[([^\]]+)\]: ")
+
+
+def logger_name(fqn: str) -> str:
+    """The rcutils logger of a node: `/robot1/controller` -> `robot1.controller`."""
+    return fqn.strip("/").replace("/", ".")
+
+
+def logger_of(line: str) -> str | None:
+    """The logger that printed `line`, None for a line without one (it continues the one before)."""
+    match = LOG_LINE.match(line)
+    return match.group(1) if match else None
+
+
+def belongs_to(logger: str, node_logger: str) -> bool:
+    """A node's own logger and its child loggers (`robot1.controller.planner`) are the node's."""
+    return logger == node_logger or logger.startswith(node_logger + ".")
+
+
+def lines_of(lines: Iterable[str], node_logger: str) -> list[str] | None:
+    """The lines of `lines` that the node of `node_logger` printed; None when none names a logger
+    at all (a console format of the user's own), so they cannot be told apart."""
+    kept: list[str] = []
+    named = mine = False
+    for line in lines:
+        logger = logger_of(line)
+        if logger is not None:
+            named, mine = True, belongs_to(logger, node_logger)
+        if mine:
+            kept.append(line)
+    return kept if named else None
 
 
 def rotating_file(path: Path, max_bytes: int = MAX_BYTES, backups: int = BACKUPS) -> RotatingFileHandler:

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 from fleet import __version__
 from fleet.files import write_atomic
 from fleet.rules import hosts_dir, services_dir
+from fleet.runtime.node_log import logger_name
 from fleet.runtime.processes import stop_all
 from fleet.server.logs import robot_logs
 from fleet.server.reconcile import plan_changes
@@ -806,8 +807,10 @@ class Agent:
         unit = self._unit(request.fleet, request.robot)
         if request.node and request.node not in unit.node_names():
             raise _no_such_node(request.robot, request.node, unit)
-        nodes = [request.node] if request.node else unit.node_names()
-        yield p.logs_key(request.fleet, self.name), p.encode(robot_logs(nodes, unit.log_file, request))
+        states = unit.node_states()
+        loggers = {state.name: logger_name(state.fqn) for state in states if state.fqn}
+        reply = robot_logs([state.name for state in states], unit.log_file, request, loggers)
+        yield p.logs_key(request.fleet, self.name), p.encode(reply)
 
     # -- restart --------------------------------------------------------------------------------
 

@@ -2,28 +2,48 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
+from fleet.runtime.node_log import lines_of
 from fleet.wire import protocol as p
 
+SHARED_SCAN = 10  # a node's last N lines are looked for in the last N * 10 * (nodes sharing it) lines
 
-def robot_logs(nodes: list[str], log_file: Callable[[str], Path | None], request: p.LogsRequest) -> p.LogsReply:
-    """The lines of `nodes`' logs, each log file read once.
+
+def robot_logs(
+    nodes: list[str], log_file: Callable[[str], Path | None], request: p.LogsRequest, loggers: Mapping[str, str]
+) -> p.LogsReply:
+    """The lines of the logs of the robot's `nodes` (every node of it), or of `request.node`'s
+    alone, each log file read once.  `loggers`: each node's rcutils logger name.
 
     Nodes that share a process (`isolation: robot` composes a robot's nodes into one) share its
     log file: its lines are sent once, labelled with every node it hosts (`controller+battery`),
-    not once per node.  The cursor keeps an offset per node, so a client following the log sends
-    back what it got, whatever the grouping.
+    not once per node.  One node of them asked for alone gets the lines its own logger printed
+    (fleet.runtime.node_log.lines_of), as `ros2 launch` users read a node's output by its
+    logger.  The cursor keeps an offset per node, so a client following the log sends back what
+    it got, whatever the grouping.
     """
     groups: dict[Path | None, list[str]] = {}
     for node in nodes:
         groups.setdefault(log_file(node), []).append(node)
+    shared_by = 1
+    if request.node:
+        path = log_file(request.node)
+        shared_by = len(groups.get(path, ()))
+        groups = {path: [request.node]}
     lines: list[p.LogLine] = []
     cursor: dict[str, int] = {}
     for path, members in groups.items():
         start = (request.cursor or {}).get(members[0])
-        text_lines, offset = read_log(path, request.tail, start)
+        # a shared log holds the others' lines too: look further back to find `tail` of its own
+        text_lines, offset = read_log(path, request.tail * (SHARED_SCAN * shared_by if shared_by > 1 else 1), start)
+        if shared_by > 1 and members[0] in loggers:
+            own = lines_of(text_lines, loggers[members[0]])
+            if own is not None:
+                text_lines = own
+            if start is None:  # a tail: of the node's own lines
+                text_lines = text_lines[-request.tail :] if request.tail else []
         cursor.update(dict.fromkeys(members, offset))
         label = "+".join(members)
         lines.extend(p.LogLine(node=label, text=text) for text in text_lines)

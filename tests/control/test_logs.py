@@ -5,6 +5,8 @@ from __future__ import annotations
 from fleet.server.logs import read_log, robot_logs
 from fleet.wire import protocol as p
 
+LOGGERS = {"controller": "r1.controller", "battery": "r1.battery", "safety": "r1.safety"}
+
 
 def test_read_log_tails_then_follows_whole_lines(tmp_path):
     path = tmp_path / "node.log"
@@ -29,7 +31,7 @@ def test_nodes_sharing_a_process_get_its_lines_once(tmp_path):
     files = {"controller": composite, "battery": composite, "safety": alone}
     request = p.LogsRequest(fleet="f", robot="r1", tail=10)
 
-    reply = robot_logs(["controller", "battery", "safety"], files.get, request)
+    reply = robot_logs(["controller", "battery", "safety"], files.get, request, LOGGERS)
 
     assert [(line.node, line.text) for line in reply.lines] == [
         ("controller+battery", "[WARN] [r1.controller]: blocked"),
@@ -40,13 +42,38 @@ def test_nodes_sharing_a_process_get_its_lines_once(tmp_path):
     with open(composite, "a") as stream:
         stream.write("[INFO] [r1.battery]: 79%\n")
     request = p.LogsRequest(fleet="f", robot="r1", tail=10, cursor=reply.cursor)
-    again = robot_logs(["controller", "battery", "safety"], files.get, request)
+    again = robot_logs(["controller", "battery", "safety"], files.get, request, LOGGERS)
     assert [(line.node, line.text) for line in again.lines] == [("controller+battery", "[INFO] [r1.battery]: 79%")]
 
 
-def test_one_node_of_a_shared_process_is_labelled_with_its_own_name(tmp_path):
+def test_one_node_of_a_shared_process_gets_the_lines_of_its_own_logger(tmp_path):
+    """`fleet logs r1 controller` of isolation: robot: the controller's lines (and the traceback
+    after one), not its neighbours', and as many as --tail asks for."""
     composite = tmp_path / "composite-1.log"
-    composite.write_text("tick\n")
+    composite.write_text(
+        "[INFO] [1.0] [r1.controller]: driving\n"
+        "[INFO] [1.1] [r1.battery]: 80%\n"
+        "[ERROR] [1.2] [r1.controller]: boom\n"
+        "Traceback (most recent call last):\n" + "".join(f"[INFO] [2.{i}] [r1.battery]: 79%\n" for i in range(8))
+    )
+    files = {"controller": composite, "battery": composite}
+    request = p.LogsRequest(fleet="f", robot="r1", node="controller", tail=2)
+    reply = robot_logs(["controller", "battery"], files.get, request, LOGGERS)
+    assert [(line.node, line.text) for line in reply.lines] == [
+        ("controller", "[ERROR] [1.2] [r1.controller]: boom"),
+        ("controller", "Traceback (most recent call last):"),
+    ]
+    # Followed: only the controller's new lines.
+    with open(composite, "a") as stream:
+        stream.write("[INFO] [3.0] [r1.battery]: 78%\n[INFO] [3.1] [r1.controller]: arrived\n")
+    request = p.LogsRequest(fleet="f", robot="r1", node="controller", tail=2, cursor=reply.cursor)
+    again = robot_logs(["controller", "battery"], files.get, request, LOGGERS)
+    assert [line.text for line in again.lines] == ["[INFO] [3.1] [r1.controller]: arrived"]
+
+
+def test_a_shared_log_in_a_format_without_loggers_is_shown_whole(tmp_path):
+    composite = tmp_path / "composite-1.log"
+    composite.write_text("tick\ntock\n")
     request = p.LogsRequest(fleet="f", robot="r1", node="battery", tail=10)
-    reply = robot_logs(["battery"], {"battery": composite}.get, request)
-    assert [(line.node, line.text) for line in reply.lines] == [("battery", "tick")]
+    reply = robot_logs(["controller", "battery"], {"controller": composite, "battery": composite}.get, request, LOGGERS)
+    assert [(line.node, line.text) for line in reply.lines] == [("battery", "tick"), ("battery", "tock")]

@@ -23,6 +23,7 @@ import psutil
 import pytest
 import yaml
 
+from fleet.runtime.node_log import belongs_to, logger_of
 from fleet.testing.netns import Lan, netns_problem
 from fleet.testing.poll import poll
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked
@@ -326,6 +327,9 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     fleet.wait(met, 40, "b1 to bump into a1")
     logs = fleet.fleet("logs", "a1", "safety", "--tail", "50", timeout=60)
     assert logs.returncode == 0 and "blocked: obstacle" in logs.stdout, logs.stdout + logs.stderr
+    # a1's nodes share one process (isolation: robot): the safety node's own lines only
+    loggers = {logger_of(line) for line in logs.stdout.splitlines()} - {None}
+    assert loggers and all(belongs_to(logger, "a1.safety") for logger in loggers), logs.stdout
 
     # Parameters and logs of a robot on another computer.
     done = fleet.fleet("param", "set", "b2", "controller", "max_speed", "0.7", timeout=90)

@@ -7,9 +7,10 @@ import json
 import pytest
 
 from fleet.nodes.host import RequestError, parse_request
-from fleet.runtime.hosting import LOG_LINE, add_request, host_command, logger_name, place
+from fleet.runtime.hosting import add_request, host_command, place
 from fleet.runtime.isolation import plan_processes
 from fleet.runtime.launch_file import load_launch_file
+from fleet.runtime.node_log import lines_of, logger_name, logger_of
 from tests.runtime.test_command_line import _robot_plan
 
 
@@ -24,9 +25,22 @@ def test_place_fills_hosts_in_order_up_to_the_group_size():
 def test_logger_names_follow_rcutils():
     assert logger_name("/robot1/controller") == "robot1.controller"
     assert logger_name("/site/a/r1/battery") == "site.a.r1.battery"
-    match = LOG_LINE.match("[ERROR] [1700000000.123456789] [robot1.controller]: boom")
-    assert match and match.group(1) == "robot1.controller"
-    assert LOG_LINE.match("Traceback (most recent call last):") is None
+    assert logger_of("[ERROR] [1700000000.123456789] [robot1.controller]: boom") == "robot1.controller"
+    assert logger_of("Traceback (most recent call last):") is None
+
+
+def test_the_lines_of_one_node_of_a_shared_process():
+    lines = [
+        "starting",  # before any logger: whose, nobody can say
+        "[INFO] [1.0] [r1.controller]: driving",
+        "[INFO] [1.1] [r1.battery]: 80%",
+        "[ERROR] [1.2] [r1.controller.planner]: boom",  # a child logger of the node
+        "Traceback (most recent call last):",
+        "[INFO] [1.3] [r1.controllers]: not the controller's",
+    ]
+    assert lines_of(lines, "r1.controller") == lines[1:2] + lines[3:5]
+    assert lines_of(lines, "r1.battery") == [lines[2]]
+    assert lines_of(["plain", "lines"], "r1.controller") is None  # a format without loggers
 
 
 def test_agent_isolation_leaves_composable_nodes_to_the_host(prefix, tmp_path):
