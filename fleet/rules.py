@@ -79,8 +79,10 @@ STATE_VARIABLE = "FLEET_STATE_DIR"
 
 
 def state_dir() -> Path:
+    """Absolute: the daemon's agents leave the working directory for their own (a relative
+    FLEET_STATE_DIR had the daemon's router write its registry under the agent's directory)."""
     value = os.environ.get(STATE_VARIABLE)
-    return Path(value).expanduser() if value else Path.home() / ".local" / "state" / "fleet"
+    return Path(os.path.abspath(Path(value).expanduser())) if value else Path.home() / ".local" / "state" / "fleet"
 
 
 def daemon_pid_file(root: Path) -> Path:

@@ -27,6 +27,7 @@ def run(listen: str, root: Path, zenoh_config: Path | None, extra_agents: list[s
     from fleet.server.router import Registry, serve_router
     from fleet.wire.session import open_router
 
+    root = root.resolve()  # its agents change the working directory (fleet.server.agent)
     registry = Registry(registry_file(router_dir(root)))
     router_dir(root).mkdir(parents=True, exist_ok=True)
     local, *others = [

@@ -16,21 +16,29 @@ pytestmark = pytest.mark.integration
 def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp_path):
     cluster = fresh_cluster
     state = tmp_path / "state"
-    env = dict(cluster.env, FLEET_STATE_DIR=str(state), FLEET_CONNECT=cluster.endpoint)
+    # Relative, as a user may set it: the daemon's agent leaves the working directory, and
+    # every file of the daemon must still land in this one.
+    env = dict(cluster.env, FLEET_STATE_DIR="state", FLEET_CONNECT=cluster.endpoint)
+
+    def fleet(*args: str):
+        return cluster.cli(*args, env=env, cwd=tmp_path)
+
     spec = cluster.spec(
         agents={"local": {}},
         defaults={"template": "tiny", "agent": "local"},
         robots=[{"name": "robot1"}, {"name": "robot2"}],
     )
     try:
-        done = cluster.cli("deploy", str(spec), env=env)
+        done = fleet("deploy", str(spec))
         assert done.returncode == 0, done.stdout + done.stderr
         assert "starting the local fleet daemon" in done.stderr
         pid = running_pid(state)
         assert pid is not None and (state / "daemon.log").exists()
         assert (state / "agents" / "local" / "desired" / "tiny.json").exists()
+        assert (state / "router" / "registry.json").exists()
+        assert [path.relative_to(state) for path in state.rglob("state")] == []
 
-        status = cluster.cli("status", "--json", env=env)
+        status = fleet("status", "--json")
         assert status.returncode == 0, status.stdout + status.stderr
         robots = json.loads(status.stdout)["robots"]
         assert {(r["name"], r["agent"], r["state"]) for r in robots} == {
@@ -39,17 +47,17 @@ def test_deploy_starts_the_local_daemon_and_down_all_stops_it(fresh_cluster, tmp
         }
         node_pids = {node["pid"] for r in robots for node in r["nodes"]}
 
-        again = cluster.cli("up", env=env)
+        again = fleet("up")
         assert again.returncode == 0 and f"pid {pid}" in again.stdout
 
-        down = cluster.cli("down", "--all", env=env)
+        down = fleet("down", "--all")
         assert down.returncode == 0, down.stdout + down.stderr
         assert "local daemon stopped" in down.stdout
         wait_processes_gone([pid], 10)
         assert not any(psutil.pid_exists(p) for p in node_pids)
         assert running_pid(state) is None and not (state / "daemon.pid").exists()
     finally:
-        cluster.cli("down", "--all", env=env)
+        fleet("down", "--all")
 
 
 def test_up_with_agents_runs_a_spec_for_several_computers_on_this_one(fresh_cluster, tmp_path):
