@@ -328,7 +328,7 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     logs = fleet.fleet("logs", "a1", "safety", "--tail", "50", timeout=60)
     assert logs.returncode == 0 and "blocked: obstacle" in logs.stdout, logs.stdout + logs.stderr
     # a1's nodes share one process (isolation: robot): the safety node's own lines only
-    loggers = {logger_of(line) for line in logs.stdout.splitlines()} - {None}
+    loggers = {logger for line in logs.stdout.splitlines() if (logger := logger_of(line)) is not None}
     assert loggers and all(belongs_to(logger, "a1.safety") for logger in loggers), logs.stdout
 
     # Parameters and logs of a robot on another computer.
