@@ -36,10 +36,12 @@ def robot_logs(
     cursor: dict[str, int] = {}
     for path, members in groups.items():
         start = (request.cursor or {}).get(members[0])
+        own_logger = loggers.get(members[0]) if shared_by > 1 else None
         # a shared log holds the others' lines too: look further back to find `tail` of its own
-        text_lines, offset = read_log(path, request.tail * (SHARED_SCAN * shared_by if shared_by > 1 else 1), start)
-        if shared_by > 1 and members[0] in loggers:
-            own = lines_of(text_lines, loggers[members[0]])
+        scan = SHARED_SCAN * shared_by if own_logger else 1
+        text_lines, offset = read_log(path, request.tail * scan, start)
+        if own_logger:
+            own = lines_of(text_lines, own_logger)
             if own is not None:
                 text_lines = own
             if start is None:  # a tail: of the node's own lines
