@@ -30,6 +30,7 @@ LONGEST_NODE_SERVICE = "set_parameters_atomically"
 
 # The units an agent runs besides robots, by name.  A robot cannot take one of these names: a
 # robot named `world` would be the world's unit and overwrite its files.
+MAX_DOMAIN_ID = 232  # ROS 2's highest ROS_DOMAIN_ID on Linux (its DDS ports stay below the ephemeral range)
 WORLD_UNIT = "world"
 RESERVED_UNIT_NAMES = frozenset({WORLD_UNIT})
 # The template of the world unit: no robot can run it.

@@ -13,12 +13,13 @@ from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
 from fleet.client.robots import fleet_status, robot_place
-from fleet.errors import ControlError
+from fleet.errors import ControlError, FleetError, Location
 from fleet.plan import (
     FleetView,
     RobotRow,
     build_view,
     discovery_for,
+    domain_clash,
     held_generation,
     new_generation,
     plan_record,
@@ -117,8 +118,10 @@ def deploy(
     timeout: float = 60.0,
     on_progress: Callable[[list[RobotRow]], None] | None = None,
 ) -> Outcome:
-    statuses, registries = client.status(expansion.fleet)
+    statuses, registries = client.status(None)  # every fleet's: a ROS domain is one fleet's alone
     before = build_view(statuses, registries, time.time())
+    if clash := domain_clash(expansion, before):
+        raise FleetError(clash, Location(expansion.spec.where("ros", "domain_id")))
     outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before), waited=wait)
     requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
     # What the router keeps: each desired state, for agents that are away, and the plan, for status.
@@ -140,7 +143,7 @@ def deploy(
             statuses, registries = client.status(expansion.fleet)
         view = build_view(statuses, registries, time.time())
         outcome.view = view.only(expansion.fleet)
-        for (_fleet, _agent), generation in view.generations.items():
+        for generation in outcome.view.generations.values():
             if generation > outcome.generation:
                 outcome.superseded_by = max(outcome.superseded_by or 0, generation)
         if on_progress is not None:

@@ -3,6 +3,7 @@ runs where now (the fleet view, from status replies), and the difference between
 
 from fleet.plan.desired import (
     discovery_for,
+    domain_clash,
     held_generation,
     new_generation,
     plan_record,
@@ -20,6 +21,7 @@ __all__ = [
     "build_view",
     "diff",
     "discovery_for",
+    "domain_clash",
     "held_generation",
     "known_fleets",
     "locate_world",

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from fleet.plan.discovery import DiscoveryPlan, local_servers, plan_discovery
 from fleet.plan.view import FleetView
+from fleet.rules import MAX_DOMAIN_ID
 from fleet.wire import protocol as p
 
 if TYPE_CHECKING:
@@ -94,6 +95,25 @@ def with_planned_agents(
         )
         for agent in missing
     ]
+
+
+def domain_clash(expansion: Expansion, view: FleetView) -> str | None:
+    """Why the fleet cannot have its ROS domain, or None: another fleet on this router runs in it
+    (agents report each fleet's domain).  Two fleets in one domain meet: nodes of the same names
+    on the same topics, and both fleets' discovery servers want the domain's one port."""
+    others = sorted(fleet for fleet, domain in view.domain_ids.items() if domain == expansion.domain_id)
+    others = [fleet for fleet in others if fleet != expansion.fleet]
+    if not others:
+        return None
+    used = set(view.domain_ids.values())
+    # the next one up (0 is every stray ROS node's default: not offered)
+    after = [*range(expansion.domain_id + 1, MAX_DOMAIN_ID + 1), *range(1, expansion.domain_id)]
+    free = next((domain for domain in after if domain not in used), None)
+    return (
+        f"ros.domain_id {expansion.domain_id} is fleet {others[0]}'s on this router: each fleet needs a ROS "
+        f"domain of its own, or their nodes meet (domains in use: {', '.join(map(str, sorted(used)))}"
+        + (f"; {free} is free)" if free is not None else ")")
+    )
 
 
 def discovery_for(expansion: Expansion, view: FleetView) -> DiscoveryPlan:

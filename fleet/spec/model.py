@@ -6,7 +6,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
-from fleet.rules import LOCAL_AGENT
+from fleet.rules import LOCAL_AGENT, MAX_DOMAIN_ID
 from fleet.spec.yaml_source import SourceMap
 
 
@@ -124,7 +124,7 @@ class World(Measured):
 
 
 class Ros(Strict):
-    domain_id: int = Field(0, ge=0, le=232)
+    domain_id: int = Field(0, ge=0, le=MAX_DOMAIN_ID)
     use_sim_time: bool = True
     # How ROS traffic crosses computers (docs/multi-computer.md): `dds`, nodes talking DDS
     # directly, found through the fleet's discovery server; `zenoh`, DDS kept on each computer

@@ -38,7 +38,7 @@ from typing import Any, Final, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fleet.errors import validation_message
-from fleet.rules import ROS_TOKEN_PATTERN, ros_name_problem
+from fleet.rules import MAX_DOMAIN_ID, ROS_TOKEN_PATTERN, ros_name_problem
 from fleet.rules import key_name_problem as key_name_problem
 from fleet.wire.limits import MAX_BUNDLES as MAX_BUNDLES
 from fleet.wire.limits import MAX_FILE_BYTES as MAX_FILE_BYTES
@@ -320,7 +320,7 @@ class ApplyRequest(Message):
     fleet: str
     agent: str
     generation: int = Field(ge=0)
-    domain_id: int = Field(ge=0, le=232)
+    domain_id: int = Field(ge=0, le=MAX_DOMAIN_ID)
     bundles: list[BundleMessage] = Field(max_length=MAX_BUNDLES)
     sent_at: float = 0.0
     # The fleet's DDS discovery server ("address:port") and the agent that runs it.  A host

@@ -267,6 +267,24 @@ def test_a_robot_that_cannot_start_on_its_agent_leaves_the_whole_fleet_as_it_was
     assert _settled_rows(cluster, "tiny") == before
 
 
+def test_a_second_fleet_in_the_same_ros_domain_is_refused_and_nothing_is_sent(cluster):
+    """Two fleets in one ROS domain meet: the same topic names, and one port for both discovery
+    servers (the second one's died, and its nodes used the first fleet's).  The second deploy is
+    bad input; the first fleet runs on as it was."""
+    cluster.deploy(cluster.spec())
+    before = _settled_rows(cluster, "tiny")
+    other = cluster.spec(name="other", fleet="other")
+    done = cluster.cli("deploy", str(other), "--connect", cluster.endpoint)
+    assert done.returncode == 2 and done.stdout == "", done.stdout + done.stderr
+    assert re.fullmatch(
+        rf"fleet: error: {re.escape(str(other))}:\d+:\d+: ros.domain_id {cluster.domain_id} is fleet tiny's "
+        r"on this router: each fleet needs a ROS domain of its own, .*\n",
+        done.stderr,
+    ), done.stderr
+    assert {row.fleet for row in cluster.view().robots} == {"tiny"}
+    assert _settled_rows(cluster, "tiny") == before
+
+
 def test_a_deploy_that_moves_the_discovery_server_says_it_restarts_the_robots(cluster):
     """Switching the transport gives every agent its own discovery server: no bundle changes, but
     each robot restarts in its new ROS environment, and the deploy says so instead of "nothing
