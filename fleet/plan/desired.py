@@ -101,8 +101,9 @@ def domain_clash(expansion: Expansion, view: FleetView) -> str | None:
     """Why the fleet cannot have its ROS domain, or None: another fleet on this router runs in it
     (agents report each fleet's domain).  Two fleets in one domain meet: nodes of the same names
     on the same topics, and both fleets' discovery servers want the domain's one port."""
-    others = sorted(fleet for fleet, domain in view.domain_ids.items() if domain == expansion.domain_id)
-    others = [fleet for fleet in others if fleet != expansion.fleet]
+    others = sorted(
+        f for f, domain in view.domain_ids.items() if domain == expansion.domain_id and f != expansion.fleet
+    )
     if not others:
         return None
     used = set(view.domain_ids.values())
