@@ -5,13 +5,14 @@ The plan (what to send) comes from fleet.plan, the messages from fleet.wire.
 """
 
 from fleet.client.control_client import ControlClient, connect
-from fleet.client.deployment import Outcome, Restart, deploy, down, restart
+from fleet.client.deployment import Outcome, Restart, check_domain, deploy, down, restart
 from fleet.client.robots import fleet_status, locate_robot, tool_environment
 
 __all__ = [
     "ControlClient",
     "Outcome",
     "Restart",
+    "check_domain",
     "connect",
     "deploy",
     "down",

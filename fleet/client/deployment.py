@@ -120,8 +120,7 @@ def deploy(
 ) -> Outcome:
     statuses, registries = client.status(None)  # every fleet's: a ROS domain is one fleet's alone
     before = build_view(statuses, registries, time.time())
-    if clash := domain_clash(expansion, before):
-        raise FleetError(clash, Location(expansion.spec.where("ros", "domain_id")))
+    check_domain(expansion, before)
     outcome = Outcome(generation=new_generation(), discovery=discovery_for(expansion, before), waited=wait)
     requests = requests_for(expansion, outcome.generation, before.agents_serving(expansion.fleet), outcome.discovery)
     # What the router keeps: each desired state, for agents that are away, and the plan, for status.
@@ -168,6 +167,13 @@ def deploy(
             break
         time.sleep(POLL_INTERVAL)
     return outcome
+
+
+def check_domain(expansion: Expansion, view: FleetView) -> None:
+    """Bad input (nothing is sent) when another fleet in `view`, every fleet on the router, runs
+    in the fleet's ROS domain."""
+    if clash := domain_clash(expansion, view):
+        raise FleetError(clash, Location(expansion.spec.where("ros", "domain_id")))
 
 
 def _problems(client: ControlClient, requests: list[p.ApplyRequest]) -> dict[str, dict[str, str]]:

@@ -281,6 +281,9 @@ def test_a_second_fleet_in_the_same_ros_domain_is_refused_and_nothing_is_sent(cl
         r"on this router: each fleet needs a ROS domain of its own, .*\n",
         done.stderr,
     ), done.stderr
+    # `fleet diff` says so too: it shows what a deploy would do.
+    diff = cluster.cli("diff", str(other), "--connect", cluster.endpoint)
+    assert (diff.returncode, diff.stdout, diff.stderr) == (2, "", done.stderr)
     assert {row.fleet for row in cluster.view().robots} == {"tiny"}
     assert _settled_rows(cluster, "tiny") == before
 
