@@ -295,14 +295,14 @@ def diff(
 
     from fleet.cli.output import console, print_json, print_warnings
     from fleet.cli.render_cmd import load_and_expand
-    from fleet.client import check_domain
+    from fleet.client import check_domain, visible_statuses
     from fleet.plan import build_view, discovery_for
     from fleet.plan import diff as plan_diff
 
     expansion = load_and_expand(spec, set_)
     print_warnings(expansion.warnings)
     with client(connect, zenoh_config) as control:
-        statuses, registries = control.status(None)  # every fleet's, as deploy's domain check needs
+        statuses, registries = visible_statuses(control, expansion.fleet)
         deployed = {
             bundle.name: bundle for state in control.desired_states(expansion.fleet) for bundle in state.bundles
         }

@@ -5,7 +5,7 @@ The plan (what to send) comes from fleet.plan, the messages from fleet.wire.
 """
 
 from fleet.client.control_client import ControlClient, connect
-from fleet.client.deployment import Outcome, Restart, check_domain, deploy, down, restart
+from fleet.client.deployment import Outcome, Restart, check_domain, deploy, down, restart, visible_statuses
 from fleet.client.robots import fleet_status, locate_robot, tool_environment
 
 __all__ = [
@@ -20,4 +20,5 @@ __all__ = [
     "locate_robot",
     "restart",
     "tool_environment",
+    "visible_statuses",
 ]

@@ -36,7 +36,7 @@ def test_scout_passes_the_crate(fleet_up):
 def test_spec_gets_the_reserved_domain_and_stays_unchanged():
     spec = load_spec(SAFETY_STOP)
     isolated = with_domain_id(spec, 177)
-    assert (spec.ros.domain_id, isolated.ros.domain_id) == (43, 177)
+    assert (spec.ros.domain_id, isolated.ros.domain_id) == (44, 177)
     assert expand_fleet(isolated).domain_id == 177
     assert isolated.source_file == spec.source_file and isolated.robots == spec.robots
 
