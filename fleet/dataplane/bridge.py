@@ -46,6 +46,7 @@ log = logging.getLogger("fleet.bridge")
 STATS_PERIOD = 10.0  # s between the bridge's traffic lines in its log
 PROBE_PERIOD = 1.0  # s between probes of the path through the router
 ECHO_TIMEOUT = 5.0  # s without an echo, while a router is connected, before the session is replaced
+TOKENS_TIMEOUT = 5.0  # s to learn the importers already there when a session opens
 # The exporting side's own DDS queue per topic: it only has to hold what arrives between two
 # wake-ups of the exporter; the publisher's depth (what its subscribers see) is the route's.
 EXPORT_DEPTH = 100
@@ -123,7 +124,13 @@ class Exporter:
         with self._lock:
             self._importers, self._session, self._publishers = {}, session, {}
         pattern = import_token_key(self.fleet, "*", "**")
-        return [session.liveliness().declare_subscriber(pattern, self._on_token, history=True)]
+        keep = [session.liveliness().declare_subscriber(pattern, self._on_token, history=True)]
+        # The history comes later, on Zenoh's thread: ask for the tokens already there too, so
+        # that the first messages taken are not dropped for want of an importer it will know of.
+        for reply in session.liveliness().get(pattern, timeout=TOKENS_TIMEOUT):
+            if reply.ok is not None:
+                self._on_token(reply.ok)
+        return keep
 
     def start(self) -> None:
         self._thread.start()
@@ -146,7 +153,7 @@ class Exporter:
             agents = self._importers.setdefault(topic, set())
             if sample.kind == zenoh.SampleKind.DELETE:
                 agents.discard(agent)
-            else:
+            elif agent not in agents:  # the same token from the history and the get: once
                 agents.add(agent)
                 if topic in self._latched:
                     self._resend.append((agent, topic))
