@@ -27,10 +27,10 @@ MAX_NAMESPACE_LENGTH = MAX_TOPIC_NAME_LENGTH - 2
 # Every ROS node serves its parameters under its own name; the longest of those services is the
 # longest name a node creates, so it bounds how long a node's full name can be.
 LONGEST_NODE_SERVICE = "set_parameters_atomically"
+MAX_DOMAIN_ID = 232  # ROS 2's highest ROS_DOMAIN_ID on Linux (its DDS ports stay below the ephemeral range)
 
 # The units an agent runs besides robots, by name.  A robot cannot take one of these names: a
 # robot named `world` would be the world's unit and overwrite its files.
-MAX_DOMAIN_ID = 232  # ROS 2's highest ROS_DOMAIN_ID on Linux (its DDS ports stay below the ephemeral range)
 WORLD_UNIT = "world"
 RESERVED_UNIT_NAMES = frozenset({WORLD_UNIT})
 # The template of the world unit: no robot can run it.

@@ -805,11 +805,12 @@ class Agent:
     def _handle_logs(self, query):
         request = p.decode(_payload(query), p.LogsRequest)
         unit = self._unit(request.fleet, request.robot)
-        if request.node and request.node not in unit.node_names():
-            raise _no_such_node(request.robot, request.node, unit)
         states = unit.node_states()
+        names = [state.name for state in states]
+        if request.node and request.node not in names:
+            raise _no_such_node(request.robot, request.node, unit)
         loggers = {state.name: logger_name(state.fqn) for state in states if state.fqn}
-        reply = robot_logs([state.name for state in states], unit.log_file, request, loggers)
+        reply = robot_logs(names, unit.log_file, request, loggers)
         yield p.logs_key(request.fleet, self.name), p.encode(reply)
 
     # -- restart --------------------------------------------------------------------------------
