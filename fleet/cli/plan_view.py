@@ -85,7 +85,8 @@ def print_plan(expansion: Expansion, console) -> None:
             f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}",
         )
     console.print(robots)
-    console.print(labelled("? = started only when its launch condition holds (e.g. enable_safety)", "dim"))
+    if any(node["conditional"] for robot in data["robots"] for node in robot["nodes"]):
+        console.print(labelled("? = started only when its launch condition holds (e.g. enable_safety)", "dim"))
     parameters = table("robot", "node", "parameter", "value", "from", title="Effective parameters")
     for robot in data["robots"]:
         for node, values in robot["parameters"].items():

@@ -188,6 +188,7 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     bridge = _bridge_routes(spec, bundles, robots)
     _check_deliverable(spec, bundles, bridge)
     warnings = sorted(_once(found) for found in unknown.values()) + _misnamed_defaults(templates, robots)
+    warnings += _sim_time_without_world(spec, robots)
     return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=warnings)
 
 
@@ -202,6 +203,28 @@ def _misnamed_defaults(templates: TemplateSet, robots: list[RobotPlan]) -> list[
                 f"{template}{PARAMS_SUFFIX}; it has none"
             )
     return warnings
+
+
+def _sim_time_without_world(spec: FleetSpec, robots: list[RobotPlan]) -> list[str]:
+    """A warning when robots follow /clock and the fleet has no world to publish it: their nodes'
+    time then stands still at 0 (timers never fire) until something else publishes /clock, a
+    simulator of the user's own, say. Real robots want `use_sim_time: false`."""
+    if spec.world is not None:
+        return []
+    on_sim_time = [
+        plan.name
+        for plan in robots
+        if plan.launch_args.get("use_sim_time", str(spec.ros.use_sim_time)).lower() != "false"
+    ]
+    if not on_sim_time:
+        return []
+    shown = ", ".join(on_sim_time[:3]) + (f" and {len(on_sim_time) - 3} more" if len(on_sim_time) > 3 else "")
+    default = "" if "use_sim_time" in spec.ros.model_fields_set else ", the default"
+    return [
+        f"{_spec_location(spec, ('ros', 'use_sim_time'))}: robots {shown} run on sim time (use_sim_time true{default}) "
+        "but the fleet has no world to publish /clock: their nodes' time stands still until something else "
+        "does; set `ros: {use_sim_time: false}` for real robots, or add a `world`"
+    ]
 
 
 def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:

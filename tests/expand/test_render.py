@@ -400,7 +400,7 @@ def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained
     (templates / "scout.params.yaml").write_text("controller: {max_speed: 0.3}\nbattery: {capacity: 80.0}\n")
     spec = tmp_path / "fleet.yaml"
     spec.write_text(
-        "fleet: t\ntemplates: templates\ndefaults: {template: scout}\nrobots:\n"
+        "fleet: t\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\nrobots:\n"
         "- {name: a, parameters: {controller: {max_speed: 0.6}}}\n- {name: b}\n"
     )
     expansion = expand_fleet(parse_spec(spec.read_text(), str(spec)))
@@ -455,7 +455,7 @@ def test_a_template_whose_defaults_look_misnamed_is_warned_about(tmp_path, misna
     (templates / "scout_2.params.yaml").write_text("controller: {max_speed: 0.3}\n")
     spec = tmp_path / "fleet.yaml"
     spec.write_text(
-        "fleet: t\ntemplates: templates\ndefaults: {template: scout}\n"
+        "fleet: t\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
         "robots:\n- {name: a, parameters: {controller: {max_sped: 0.6}}}\n- {name: b, template: scout_2}\n"
     )
     assert expand_fleet(parse_spec(spec.read_text(), str(spec))).warnings == []
@@ -464,3 +464,33 @@ def test_a_template_whose_defaults_look_misnamed_is_warned_about(tmp_path, misna
         f"{templates / misnamed}: not read as template scout's parameter defaults, which must be named "
         "scout.params.yaml; it has none"
     ]
+
+
+def test_robots_on_sim_time_without_a_world_are_warned_about(tmp_path):
+    """use_sim_time is on by default; a fleet without a world has nothing publishing /clock, so its
+    nodes' time would stand still (timers never fire, as a first fleet of real robots found).
+    Render says so at the spec's `ros`; a world, `use_sim_time: false` or robots that turn it
+    off each say nothing."""
+    spec = tmp_path / "fleet.yaml"
+
+    def warnings(text: str) -> list[str]:
+        spec.write_text(text)
+        return expand_fleet(parse_spec(text, str(spec))).warnings
+
+    robots = "robots:\n- {name: a}\n- {name: b}\n"
+    assert warnings("fleet: t\nros: {domain_id: 5}\n" + robots) == [
+        f"{spec}:2:1: robots a, b run on sim time (use_sim_time true, the default) but the fleet has no world "
+        "to publish /clock: their nodes' time stands still until something else does; set "
+        "`ros: {use_sim_time: false}` for real robots, or add a `world`"
+    ]
+    explicit = warnings(
+        "fleet: t\nros:\n  use_sim_time: true\n" + robots + "- {name: c, launch_args: {use_sim_time: false}}\n"
+    )
+    assert explicit == [
+        f"{spec}:3:3: robots a, b run on sim time (use_sim_time true) but the fleet has no world to publish "
+        "/clock: their nodes' time stands still until something else does; set `ros: {use_sim_time: false}` "
+        "for real robots, or add a `world`"
+    ]
+    assert warnings("fleet: t\nros: {use_sim_time: false}\n" + robots) == []
+    assert warnings("fleet: t\ndefaults: {launch_args: {use_sim_time: false}}\n" + robots) == []
+    assert warnings("fleet: t\nworld: {}\nrobots:\n- {name: a}\n- {name: b, pose: {x: 2.0}}\n") == []
