@@ -5,6 +5,7 @@ The work is fleet.client's (deploy, down, restart) and fleet.plan's (diff); here
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -105,7 +106,7 @@ def deploy(
     if json:
         print_json(outcome.to_json())
     elif outcome.problems:
-        _print_problems(outcome.problems)
+        _print_problems(outcome.problems, control.connect[0])
     else:
         _print_outcome(outcome, console())
         if outcome.unreachable:
@@ -156,13 +157,42 @@ def restart(
         raise typer.Exit(1)
 
 
-def _print_problems(problems: dict[str, dict[str, str]]) -> None:
+def _print_problems(problems: dict[str, dict[str, str]], endpoint: str) -> None:
     from fleet.errors import error_line
 
     for agent_name, robots in sorted(problems.items()):
         for robot, problem in sorted(robots.items()):
             typer.echo(error_line(f"{robot} cannot start on agent {agent_name}: {problem}"), err=True)
+    for hint in _daemon_environment_hints(problems, endpoint):
+        typer.echo(hint, err=True)
     typer.echo("nothing was deployed: every robot runs as it was", err=True)
+
+
+def _daemon_environment_hints(problems: dict[str, dict[str, str]], endpoint: str) -> list[str]:
+    """For a package the local daemon's agents did not find: they search the AMENT_PREFIX_PATH the
+    daemon started with, which a workspace sourced since (`source install/setup.bash`) did not
+    change. Says whether this shell's finds it, and how to restart the daemon with it."""
+    from fleet.client.local_daemon import daemon_runs
+    from fleet.runtime.ament import indexes, missing_package
+
+    packages = {
+        package
+        for agent, robots in problems.items()
+        for problem in robots.values()
+        if (package := missing_package(problem)) and daemon_runs(agent, endpoint)
+    }
+    hints = []
+    for package in sorted(packages):
+        prefix = indexes(package, os.environ.get("AMENT_PREFIX_PATH", ""))
+        then = (
+            f"this shell's has {package} (in {prefix}): `fleet down --all` (it stops every fleet there), then "
+            "deploy again to restart the daemon with this shell's environment"
+            if prefix
+            else f"this shell's lacks {package} too: source the workspace that installs it, `fleet down --all` "
+            "(it stops every fleet there), then deploy again"
+        )
+        hints.append(f"hint: the local daemon searches the AMENT_PREFIX_PATH it was started with; {then}")
+    return hints
 
 
 class _DeployProgress:

@@ -10,6 +10,7 @@ and one small Python script per executable that imports `fleet.nodes.<exe>` and 
 from __future__ import annotations
 
 import os
+import re
 import sys
 from collections.abc import Mapping
 from pathlib import Path
@@ -117,6 +118,23 @@ def find_package_prefix(package: str, search_path: str) -> Path:
             return Path(entry)
     searched = ", ".join(prefixes) or "(AMENT_PREFIX_PATH is empty)"
     raise LaunchFileError(f"package '{package}' not found in the ament index (searched: {searched})")
+
+
+_NOT_FOUND = re.compile(r"package '([^']+)' not found in the ament index")
+
+
+def missing_package(problem: str) -> str | None:
+    """The package a problem reported by find_package_prefix (on an agent, say) names, if any."""
+    found = _NOT_FOUND.search(problem)
+    return found.group(1) if found else None
+
+
+def indexes(package: str, search_path: str) -> Path | None:
+    """The prefix of `search_path` indexing `package`, None when none does."""
+    try:
+        return find_package_prefix(package, search_path)
+    except LaunchFileError:
+        return None
 
 
 def find_package_share(package: str, search_path: str) -> Path:

@@ -109,3 +109,31 @@ def test_up_with_agents_runs_a_spec_for_several_computers_on_this_one(fresh_clus
         assert not any(psutil.pid_exists(p) for p in node_pids)
     finally:
         cluster.cli("down", "--all", env=env)
+
+
+def test_a_package_the_daemon_started_without_is_named_with_how_to_restart_it(fresh_cluster, tmp_path):
+    """The local daemon keeps the environment of the shell that started it: a workspace sourced
+    afterwards does not reach its agents, and deploy, refused, says so and what to do."""
+    cluster = fresh_cluster
+    state = tmp_path / "state"
+    env = dict(cluster.env, FLEET_STATE_DIR=str(state), FLEET_CONNECT=cluster.endpoint)
+    without = {name: value for name, value in env.items() if name != "AMENT_PREFIX_PATH"}
+    spec = cluster.spec(agents={"local": {}}, defaults={"template": "tiny", "agent": "local"}, robots=[{"name": "r1"}])
+    try:
+        neither = cluster.cli("deploy", str(spec), env=without)
+        assert neither.returncode == 2, neither.stdout + neither.stderr
+        assert "r1 cannot start on agent local: " in neither.stderr
+        assert "package 'fleet_test' not found in the ament index" in neither.stderr
+        assert "this shell's lacks fleet_test too: source the workspace that installs it" in neither.stderr
+        assert running_pid(state) is not None  # started by that deploy, without the package
+
+        sourced = cluster.cli("deploy", str(spec), env=env)  # the daemon's environment is as it was
+        assert sourced.returncode == 2, sourced.stdout + sourced.stderr
+        assert f"this shell's has fleet_test (in {cluster.prefix}): `fleet down --all`" in sourced.stderr
+
+        assert cluster.cli("down", "--all", env=env).returncode == 0
+        restarted = cluster.cli("deploy", str(spec), env=env)
+        assert restarted.returncode == 0, restarted.stdout + restarted.stderr
+        assert "hint:" not in restarted.stderr
+    finally:
+        cluster.cli("down", "--all", env=env)

@@ -82,3 +82,17 @@ def test_ament_prefix_command_prints_prefix():
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == sys.prefix
     assert (ament.default_prefix() / "lib/fleet_nodes/composite").exists()
+
+
+def test_a_missing_package_is_named_from_the_problem_an_agent_reports(tmp_path):
+    """The deploy's hint reads the package from the agent's problem (which carries the launch
+    file's place first) and looks for it in the shell's own search path."""
+    (tmp_path / ament.INDEX_DIR).mkdir(parents=True)
+    (tmp_path / ament.INDEX_DIR / "my_pkg").write_text("")
+    with pytest.raises(LaunchFileError) as raised:
+        ament.find_package_prefix("my_pkg", "/nowhere")
+    problem = f"r1/r1.launch.yaml:12:5: {raised.value}"
+    assert ament.missing_package(problem) == "my_pkg"
+    assert ament.missing_package("r1/r1.launch.yaml:3:1: executable 'x' not found") is None
+    assert ament.indexes("my_pkg", f"/nowhere{os.pathsep}{tmp_path}") == tmp_path
+    assert ament.indexes("my_pkg", "/nowhere") is None
