@@ -45,6 +45,11 @@ def status(
         if watch and json:  # a stream, as `kubectl get -w -o json`: one document per line per refresh
             _refresh(control, fleet, view, lambda view: print_json_line(view.to_json()))
             return
+        if watch and not console().is_terminal:
+            # Piped (`| tee`, a file): rich would hold a live display until the end; each refresh is
+            # printed whole and flushed instead, a blank line between, as `kubectl get -w` streams.
+            _refresh(control, fleet, view, lambda view: _print_block(view, console()))
+            return
         if watch:
             from rich.console import Group
             from rich.live import Live
@@ -58,6 +63,14 @@ def status(
         print_view(view, console())
     if not view.all_running:
         raise typer.Exit(1)
+
+
+def _print_block(view: FleetView, out) -> None:
+    from fleet.cli.status_view import print_view
+
+    print_view(view, out)
+    out.print()
+    out.file.flush()
 
 
 def _refresh(control: ControlClient, fleet: str | None, view: FleetView, show: Callable[[FleetView], None]) -> None:

@@ -6,10 +6,12 @@ from __future__ import annotations
 import json
 import os
 import pty
+import queue
 import select
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -97,6 +99,47 @@ def test_status_watch_json_streams_one_document_per_line_until_ctrl_c(fresh_clus
         assert watch.stdout is not None
         documents = [json.loads(watch.stdout.readline()) for _ in range(3)]  # a refresh a line, as kubectl get -w
         assert [[row["name"] for row in document["robots"]] for document in documents] == [["robot1"]] * 3
+        watch.send_signal(signal.SIGINT)
+        assert watch.wait(timeout=10) == 0
+    finally:
+        if watch.poll() is None:
+            watch.kill()
+        watch.wait()
+
+
+def test_status_watch_into_a_pipe_prints_each_refresh_as_it_comes(fresh_cluster):
+    """Piped (`| tee`, a file), the live display would show nothing until the end (and nothing at
+    all when the watch is killed): each refresh is printed whole and flushed instead."""
+    cluster = fresh_cluster
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.wait_agents_online("hostA")
+    assert cluster.deploy(cluster.spec(robots=[{"name": "robot1"}])).ok
+
+    command = ["status", "--watch", "--fleet", "tiny", "--connect", cluster.endpoint]
+    watch = subprocess.Popen(
+        [sys.executable, "-m", "fleet", *command], env=cluster.env, stdout=subprocess.PIPE, text=True
+    )
+    lines: queue.Queue[str] = queue.Queue()
+
+    def read() -> None:
+        for line in watch.stdout or ():
+            lines.put(line)
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        blocks: list[list[str]] = [[]]
+        while len(blocks) < 3:  # two refreshes read while the watch runs on
+            try:
+                line = lines.get(timeout=20)
+            except queue.Empty:
+                raise AssertionError(f"nothing printed for 20 s while watching; so far: {blocks}") from None
+            if line.strip():
+                blocks[-1].append(line)
+            else:
+                blocks.append([])
+        for block in blocks[:2]:
+            assert block[0].startswith("Agents") and any(line.startswith("robot1 ") for line in block), block
         watch.send_signal(signal.SIGINT)
         assert watch.wait(timeout=10) == 0
     finally:
