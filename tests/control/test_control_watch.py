@@ -81,6 +81,37 @@ def test_status_watch_redraws_and_ends_on_ctrl_c(fresh_cluster):
         watch.close()
 
 
+class PipedWatch:
+    """`fleet status --watch ...` with its output into a pipe, read line by line with a bound."""
+
+    def __init__(self, cluster, *options: str):
+        command = ["status", "--watch", "--fleet", "tiny", "--connect", cluster.endpoint, *options]
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "fleet", *command], env=cluster.env, stdout=subprocess.PIPE, text=True
+        )
+        self.lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        for line in self.process.stdout or ():
+            self.lines.put(line)
+
+    def next_line(self, timeout: float = 20) -> str:
+        try:
+            return self.lines.get(timeout=timeout)
+        except queue.Empty:
+            raise AssertionError(f"nothing printed for {timeout} s while watching") from None
+
+    def stop_on_ctrl_c(self) -> int:
+        self.process.send_signal(signal.SIGINT)
+        return self.process.wait(timeout=10)
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.wait()
+
+
 def test_status_watch_json_streams_one_document_per_line_until_ctrl_c(fresh_cluster):
     cluster = fresh_cluster
     cluster.start_router()
@@ -88,23 +119,13 @@ def test_status_watch_json_streams_one_document_per_line_until_ctrl_c(fresh_clus
     cluster.wait_agents_online("hostA")
     assert cluster.deploy(cluster.spec(robots=[{"name": "robot1"}])).ok
 
-    command = ["status", "--watch", "--json", "--fleet", "tiny", "--connect", cluster.endpoint]
-    watch = subprocess.Popen(
-        [sys.executable, "-m", "fleet", *command],
-        env=cluster.env,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
+    watch = PipedWatch(cluster, "--json")
     try:
-        assert watch.stdout is not None
-        documents = [json.loads(watch.stdout.readline()) for _ in range(3)]  # a refresh a line, as kubectl get -w
+        documents = [json.loads(watch.next_line()) for _ in range(3)]  # a refresh a line, as kubectl get -w
         assert [[row["name"] for row in document["robots"]] for document in documents] == [["robot1"]] * 3
-        watch.send_signal(signal.SIGINT)
-        assert watch.wait(timeout=10) == 0
+        assert watch.stop_on_ctrl_c() == 0
     finally:
-        if watch.poll() is None:
-            watch.kill()
-        watch.wait()
+        watch.close()
 
 
 def test_status_watch_into_a_pipe_prints_each_refresh_as_it_comes(fresh_cluster):
@@ -116,33 +137,17 @@ def test_status_watch_into_a_pipe_prints_each_refresh_as_it_comes(fresh_cluster)
     cluster.wait_agents_online("hostA")
     assert cluster.deploy(cluster.spec(robots=[{"name": "robot1"}])).ok
 
-    command = ["status", "--watch", "--fleet", "tiny", "--connect", cluster.endpoint]
-    watch = subprocess.Popen(
-        [sys.executable, "-m", "fleet", *command], env=cluster.env, stdout=subprocess.PIPE, text=True
-    )
-    lines: queue.Queue[str] = queue.Queue()
-
-    def read() -> None:
-        for line in watch.stdout or ():
-            lines.put(line)
-
-    threading.Thread(target=read, daemon=True).start()
+    watch = PipedWatch(cluster)
     try:
         blocks: list[list[str]] = [[]]
         while len(blocks) < 3:  # two refreshes read while the watch runs on
-            try:
-                line = lines.get(timeout=20)
-            except queue.Empty:
-                raise AssertionError(f"nothing printed for 20 s while watching; so far: {blocks}") from None
+            line = watch.next_line()
             if line.strip():
                 blocks[-1].append(line)
             else:
                 blocks.append([])
         for block in blocks[:2]:
             assert block[0].startswith("Agents") and any(line.startswith("robot1 ") for line in block), block
-        watch.send_signal(signal.SIGINT)
-        assert watch.wait(timeout=10) == 0
+        assert watch.stop_on_ctrl_c() == 0
     finally:
-        if watch.poll() is None:
-            watch.kill()
-        watch.wait()
+        watch.close()
