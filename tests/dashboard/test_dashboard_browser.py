@@ -1,6 +1,7 @@
 """`fleet dashboard` in a real headless browser (Playwright driving the system Chromium) on
 fleets/two_robots.yaml deployed for real: the page shows both robots, follows a moving robot
-within a second, shows a killed node's restart, and a robot's logs and parameters on click."""
+within a second, shows a killed node's restart, and a robot's logs and parameters on click;
+and a fleet without a world."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+import yaml
 
 from fleet.testing import running_fleet
 
@@ -168,3 +170,30 @@ def test_dashboard_shows_the_fleet_live(two_robots, tmp_path):
         assert new_pid != pid
         expect(page.locator('#nodes tr[data-node="controller"] td.pid')).to_have_text(str(new_pid), timeout=5_000)
         expect(page.locator('#nodes tr[data-node="controller"] td.restarts')).to_have_text("1")
+
+
+def test_a_fleet_without_a_world_is_shown_as_such(tmp_path):
+    """Real robots run no world: the map says there is none to draw (it said the world had not
+    reported yet, as if one were coming), and the robots' table is there as for any fleet."""
+    from playwright.sync_api import expect
+
+    spec = tmp_path / "real_robots.yaml"
+    data = yaml.safe_load(TWO_ROBOTS.read_text())
+    data.pop("world")
+    data["fleet"] = "real_robots"
+    data["ros"]["use_sim_time"] = False
+    data["defaults"]["isolation"] = "agent"
+    spec.write_text(yaml.safe_dump(data))
+    with (
+        running_fleet(spec, directory=tmp_path / "fleet") as fleet,
+        dashboard(fleet, tmp_path / "dashboard.log") as url,
+        browser_page(tmp_path / "profile") as page,
+    ):
+        page.goto(url)
+        expect(page.locator("#connection")).to_have_text("live", timeout=10_000)
+        for robot in ROBOTS:
+            expect(page.locator(f'#robots tr[data-robot="{robot}"] td.state')).to_have_text("running", timeout=30_000)
+        expect(page.locator("#world-line")).to_have_text(
+            "fleet real_robots runs no world: its robots are not simulated, so there is no map"
+        )
+        expect(page.locator("#map g.robot")).to_have_count(0)

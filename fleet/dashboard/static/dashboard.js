@@ -104,7 +104,12 @@ function renderMap() {
   const line = $("#world-line");
   if (!world) {
     svg.replaceChildren();
-    line.textContent = view.fleet ? `fleet ${view.fleet}: its world has not reported yet` : "no fleet is deployed";
+    const simulated = view.doc.robots.some((r) => r.fleet === view.fleet && r.kind === "world");
+    line.textContent = !view.fleet
+      ? "no fleet is deployed"
+      : simulated
+        ? `fleet ${view.fleet}: its world has not reported yet`
+        : `fleet ${view.fleet} runs no world: its robots are not simulated, so there is no map`;
     return;
   }
   const recent = new Set();
