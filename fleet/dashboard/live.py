@@ -26,6 +26,7 @@ from fleet.client import ControlClient
 from fleet.errors import ControlError
 from fleet.plan import FleetView, RobotRow, build_view
 from fleet.plan.parameters import bundle_parameters
+from fleet.spec.rcl_types import value_text
 from fleet.wire import protocol as p
 
 log = logging.getLogger("fleet.dashboard")
@@ -118,7 +119,8 @@ class LiveFleet:
         """One parameter's live value, read from the node by its agent; ValueError for a bad name."""
         agent = self._agent_of(fleet, robot)
         reply = self.client.param(agent, p.ParamRequest(fleet=fleet, robot=robot, node=node, name=name, op="get"))
-        return {"ok": reply.ok, "value": reply.value, "reason": reply.reason}
+        text = value_text(reply.value) if reply.ok else ""
+        return {"ok": reply.ok, "value": reply.value, "text": text, "reason": reply.reason}
 
     def deployed_parameters(self, fleet: str, robot: str) -> list[dict[str, Any]]:
         """The robot's parameters as deployed (its params files in the desired state the router
@@ -137,7 +139,17 @@ class LiveFleet:
             overrides = row.overrides.get(fqn, {})
             for name, value in {**parameters, **overrides}.items():
                 node = fqn.rsplit("/", 1)[-1]
-                rows.append({"node": node, "fqn": fqn, "name": name, "value": value, "override": name in overrides})
+                # `text` as fleet shows values everywhere: JavaScript would write the double 1.0 as 1
+                rows.append(
+                    {
+                        "node": node,
+                        "fqn": fqn,
+                        "name": name,
+                        "value": value,
+                        "text": value_text(value),
+                        "override": name in overrides,
+                    }
+                )
         return rows
 
     def _row(self, fleet: str, robot: str) -> RobotRow:

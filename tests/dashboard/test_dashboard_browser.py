@@ -143,6 +143,14 @@ def test_dashboard_shows_the_fleet_live(two_robots, tmp_path):
         expect(max_speed.locator("td.deployed")).to_have_text("0.8", timeout=10_000)
         max_speed.locator("button").click()
         expect(max_speed.locator("td.live")).to_have_text("0.8", timeout=40_000)
+        # Values are written as everywhere in fleet (ROS's YAML), doubles with their point: a user
+        # copying [0, 2, ...] into a spec would give the node integers, which it refuses.
+        waypoints = page.locator('#params tr[data-node="controller"][data-param="waypoints"]')
+        expect(waypoints.locator("td.deployed")).to_have_text("[0.0, 2.0, -1.0, 2.0, -1.0, 0.0, 0.0, 0.0]")
+        waypoints.locator("button").click()
+        expect(waypoints.locator("td.live")).to_have_text("[0.0, 2.0, -1.0, 2.0, -1.0, 0.0, 0.0, 0.0]", timeout=40_000)
+        capacity = page.locator('#params tr[data-node="battery"][data-param="capacity"]')
+        expect(capacity.locator("td.deployed")).to_have_text("50.0")
         expect(page.locator("#logs")).not_to_have_text(re.compile(r"^(loading\.\.\.|\(no log lines\))?$"))
         assert "cannot read" not in (page.locator("#logs").text_content() or "")
 

@@ -343,7 +343,7 @@ function paramRow(fleet, robot, param) {
   const tr = row([
     ["node", param.node],
     ["name", param.name],
-    ["deployed", JSON.stringify(param.value) + (param.override ? " (live override)" : "")],
+    ["deployed", param.text + (param.override ? " (live override)" : "")],
   ], { "data-node": param.node, "data-param": param.name });
   const live = element("td", { class: "live" });
   const button = element("button", { type: "button" }, "read");
@@ -352,7 +352,7 @@ function paramRow(fleet, robot, param) {
     const path = `${robotPath("param", fleet, robot)}/${encodeURIComponent(param.node)}/${encodeURIComponent(param.name)}`;
     try {
       const reply = await getJson(path);
-      live.textContent = reply.ok ? JSON.stringify(reply.value) : `refused: ${reply.reason}`;
+      live.textContent = reply.ok ? reply.text : `refused: ${reply.reason}`;
     } catch (error) {
       live.textContent = `failed: ${error.message}`;
     }
