@@ -67,7 +67,26 @@ def check_spec(spec: FleetSpec, source: SourceMap) -> None:
 
     if spec.world is not None and spec.world.agent is not None:
         check_agent(spec.world.agent, ("world", "agent"))
-    if any(robot.agent is None for robot in spec.robots) or (spec.world and spec.world.agent is None):
+    # The first part of the fleet left to the default agent: where to say that it is not declared
+    # when the spec does not name it (`defaults.agent` unwritten is `local`).
+    unplaced = next((index for index, robot in enumerate(spec.robots) if robot.agent is None), None)
+    if unplaced is not None:
+        default_taker: tuple[str, DocPath] | None = (f"robot {spec.robots[unplaced].name!r}", ("robots", unplaced))
+    elif spec.world is not None and spec.world.agent is None:
+        default_taker = ("the world", ("world",))
+    else:
+        default_taker = None
+    if default_taker is not None:
+        if spec.defaults.agent not in spec.agents and "agent" not in spec.defaults.model_fields_set:
+            what, path = default_taker
+            first = next(iter(spec.agents), "...")
+            fail(
+                f"{what} names no agent, and the default one, {spec.defaults.agent!r}, is not declared under "
+                f"'agents' (declared: {', '.join(spec.agents) or 'none'}): give it `agent: {first}`, or set "
+                f"`defaults: {{agent: {first}}}`",
+                path,
+                key=path == ("world",),
+            )
         check_agent(spec.defaults.agent, ("defaults", "agent"))
 
     def check_template(name: str | None, path: DocPath) -> None:

@@ -64,6 +64,23 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
         ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: /site a/robot1\n", [":4:", "namespace"]),
         ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: relative\n", [":4:", "absolute namespace"]),
         ("fleet: demo\nrobots:\n  - name: robot1\n    agent: hostB\n", [":4:12:", "agent 'hostB' is not declared"]),
+        # Agents declared without `local`, the default nobody wrote: said at the robot left to it.
+        (
+            "fleet: demo\nagents: {rack: {}}\nrobots:\n  - name: r1\n    agent: rack\n  - name: r2\n",
+            [
+                ":6:5:",
+                "robot 'r2' names no agent, and the default one, 'local', is not declared under 'agents' "
+                "(declared: rack): give it `agent: rack`, or set `defaults: {agent: rack}`",
+            ],
+        ),
+        (
+            "fleet: demo\nagents: {rack: {}}\nworld: {}\nrobots: [{name: r1, agent: rack}]\n",
+            [":3:1:", "the world names no agent, and the default one, 'local', is not declared"],
+        ),
+        (
+            "fleet: demo\nagents: {rack: {}}\ndefaults: {agent: rak}\nrobots: [{name: r1}]\n",
+            [":3:19:", "agent 'rak' is not declared under 'agents' (declared: rack)"],
+        ),
         ("fleet: demo\nrobots:\n  - name: robot1\n    template: nosuch\n", ["template 'nosuch' not found"]),
         (
             "fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [[1, 2], [3, 4]]}}\n",
