@@ -8,12 +8,13 @@ from __future__ import annotations
 import os
 import sys
 import time
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
 
-from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client, fleet_option
+from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client, fleet_option, note_waiting
 
 if TYPE_CHECKING:
     from rich.progress import TaskID
@@ -99,7 +100,8 @@ def deploy(
         return
     print_warnings(expansion.warnings)
     agents = {bundle.agent for bundle in expansion.bundles}
-    with connect_or_start(connect, zenoh_config, agents, lambda line: typer.echo(line, err=True)) as control:
+    announce = partial(typer.echo, err=True)
+    with connect_or_start(connect, zenoh_config, agents, announce, note_waiting) as control:
         progress = _DeployProgress(console(stderr=True), enabled=not json and sys.stderr.isatty())
         with progress:
             outcome = deploy_fleet(control, expansion, wait=wait, timeout=timeout, on_progress=progress.update)

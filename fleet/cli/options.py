@@ -37,4 +37,9 @@ def _checked_fleet_name(name: str | None) -> str | None:
 def client(connect: str | None, zenoh_config: Path | None) -> ControlClient:
     from fleet.client import connect as connect_client
 
-    return connect_client(connect, zenoh_config)
+    return connect_client(connect, zenoh_config, note_waiting)
+
+
+def note_waiting(line: str) -> None:
+    """A long wait of the client's, said on stderr as it starts (the command's output stays clean)."""
+    typer.echo(f"note: {line}", err=True)

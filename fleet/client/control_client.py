@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+import threading
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,19 +16,53 @@ if TYPE_CHECKING:
 
 STATUS_TIMEOUT = 3.0
 APPLY_TIMEOUT = 10.0
+# How long a status query waits, once its first STATUS_TIMEOUT passed without the router's own
+# answer: while the router closes the link of an agent whose cable was pulled, it answers nothing
+# for up to 10 s (Zenoh closes a TCP link with SO_LINGER 10 s, unsent data on it, and handles
+# nothing else meanwhile; measured on tests/multihost's three computers: 10.4 s).
+ROUTER_STALL = 12.0
+# Opening a session waits as long for the same reason (Zenoh's default: 10 s, which such a stall
+# reached: 9.3 s measured), and says so once it has waited OPEN_NOTE_AFTER.
+OPEN_TIMEOUT_MS = 15_000
+OPEN_NOTE_AFTER = 2.0
 
 
-def connect(endpoint: str | None = None, zenoh_config: Path | None = None) -> ControlClient:
+def connect(
+    endpoint: str | None = None, zenoh_config: Path | None = None, on_wait: Callable[[str], None] | None = None
+) -> ControlClient:
     """A client of the router at `endpoint` (default: $FLEET_CONNECT or the local one), with the
     Zenoh config file given or named by $FLEET_ZENOH_CONFIG."""
-    return ControlClient([endpoint or default_endpoint()], config_file(zenoh_config))
+    return ControlClient([endpoint or default_endpoint()], config_file(zenoh_config), on_wait)
 
 
 class ControlClient:
-    def __init__(self, connect: list[str], zenoh_config: Path | None = None):
+    def __init__(
+        self, connect: list[str], zenoh_config: Path | None = None, on_wait: Callable[[str], None] | None = None
+    ):
+        """`on_wait`: told, in a line, when the client waits longer than usual (a command's stderr)."""
         self.connect = connect
         self.zenoh_config = zenoh_config
-        self.session = open_client(connect, zenoh_config)
+        self.on_wait = on_wait
+        note = None
+        if on_wait is not None:
+            where = ", ".join(connect)
+            note = threading.Timer(
+                OPEN_NOTE_AFTER,
+                on_wait,
+                [
+                    f"the fleet router at {where} has not taken the connection in {OPEN_NOTE_AFTER:.0f} s (closing "
+                    f"the link of an agent that just went away?); waiting up to {OPEN_TIMEOUT_MS / 1000:.0f} s"
+                ],
+            )
+            note.daemon = True
+            note.start()
+        try:
+            self.session = open_client(
+                connect, zenoh_config, settings={"transport/unicast/open_timeout": OPEN_TIMEOUT_MS}
+            )
+        finally:
+            if note is not None:
+                note.cancel()
 
     def close(self) -> None:
         self.session.close()
@@ -46,7 +81,14 @@ class ControlClient:
         """One wildcard get: a reply from every agent (per fleet it serves) and from the registry.
         ControlError when the router's registry does not answer: its access rules deny this client
         (an agent's certificate, say), and what agents answered would be a partial picture."""
-        statuses, registries = self._status_replies(p.status_query(fleet), timeout)
+        statuses, registries, timed_out = self._status_replies(p.status_query(fleet), timeout)
+        if not registries and timed_out:  # the router itself is late, not denying: see ROUTER_STALL
+            if self.on_wait is not None:
+                self.on_wait(
+                    f"the fleet router has not answered for {timeout:.0f} s (closing the link of an agent "
+                    f"that just went away?); waiting up to {ROUTER_STALL:.0f} s more"
+                )
+            statuses, registries, timed_out = self._status_replies(p.status_query(fleet), ROUTER_STALL)
         # A router that holds no fleet answers the wildcard with nothing, but any fleet by name.
         if not registries and (fleet is not None or not self._status_replies(p.registry_key(p.NO_FLEET), timeout)[1]):
             config = f": {self.zenoh_config}" if self.zenoh_config else ""
@@ -56,10 +98,13 @@ class ControlClient:
             )
         return statuses, registries
 
-    def _status_replies(self, key: str, timeout: float) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
+    def _status_replies(self, key: str, timeout: float) -> tuple[list[p.StatusReply], list[p.RegistryReply], bool]:
+        """The agents' and the registry's replies, and whether the query timed out (someone it
+        reached did not answer) rather than ended (all answered, or the router denied it)."""
         statuses: list[p.StatusReply] = []
         registries: list[p.RegistryReply] = []
-        for answer in self._every_answer(key, timeout):
+        answers, timed_out = self._answers(key, timeout)
+        for answer in answers:
             try:
                 data = p.parse(answer)
                 if data.get("kind") == "status":
@@ -68,20 +113,21 @@ class ControlClient:
                     registries.append(p.validate(data, p.RegistryReply))
             except p.ProtocolError:
                 continue  # another version of fleet on the same router: skip, don't crash
-        return statuses, registries
+        return statuses, registries, timed_out
 
     def desired_states(self, fleet: str, timeout: float = STATUS_TIMEOUT) -> list[p.ApplyRequest]:
         """The desired state the router keeps for each agent of `fleet`: what the last deploy sent."""
         states = []
-        for answer in self._every_answer(p.desired_key(fleet, "*"), timeout, p.encode(p.DesiredQuery())):
+        for answer in self._answers(p.desired_key(fleet, "*"), timeout, p.encode(p.DesiredQuery()))[0]:
             try:
                 states.append(p.decode(answer, p.ApplyRequest))
             except p.ProtocolError:
                 continue  # another version of fleet on the same router: skip, don't crash
         return states
 
-    def _every_answer(self, key: str, timeout: float, payload: bytes | None = None) -> Iterator[bytes]:
-        """One wildcard get: the payload of every reply that is not an error, as the replies come."""
+    def _answers(self, key: str, timeout: float, payload: bytes | None = None) -> tuple[list[bytes], bool]:
+        """One wildcard get: the payload of every reply that is not an error, and whether it timed
+        out (Zenoh ends a get that outlived its timeout with an error reply saying so)."""
         import zenoh
 
         replies = self.session.get(
@@ -91,9 +137,13 @@ class ControlClient:
             consolidation=zenoh.ConsolidationMode.NONE,
             timeout=timeout,
         )
+        answers, timed_out = [], False
         for reply in replies:
             if reply.ok is not None:
-                yield reply.ok.payload.to_bytes()
+                answers.append(reply.ok.payload.to_bytes())
+            elif reply.err is not None and reply.err.payload.to_bytes() == b"Timeout":
+                timed_out = True
+        return answers, timed_out
 
     # -- requests to one agent ------------------------------------------------------------------
 

@@ -138,6 +138,7 @@ def connect_or_start(
     zenoh_config: Path | None,
     agents: set[str],
     announce: Callable[[str], None],
+    on_wait: Callable[[str], None] | None = None,
 ) -> ControlClient:
     """Connect; if nothing answers on the default endpoint (a loopback one, not an explicit
     `endpoint`) and the spec places robots on the local agent (one of `agents`), start the local
@@ -146,7 +147,7 @@ def connect_or_start(
     from fleet.wire.session import config_file, default_endpoint, on_loopback
 
     try:
-        return connect(endpoint, zenoh_config)
+        return connect(endpoint, zenoh_config, on_wait)
     except ControlError:
         default = default_endpoint()
         if endpoint is not None or not on_loopback(default):
@@ -160,4 +161,4 @@ def connect_or_start(
             ) from None
     announce(f"starting the local fleet daemon on {default} (state in {state_dir()})")
     start(default, config_file(zenoh_config))
-    return connect(None, zenoh_config)
+    return connect(None, zenoh_config, on_wait)
