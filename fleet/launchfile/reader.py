@@ -10,6 +10,7 @@ a YAML string (`respawn: 'true'`, not `true`); a file accepted here also runs un
 from __future__ import annotations
 
 import contextlib
+import difflib
 from pathlib import Path
 from typing import Any
 
@@ -216,7 +217,9 @@ def _action(entity: Entity) -> d.Action:
     if kind in ROS2_ACTIONS:
         raise NeedsRos2Launch(f"action '{kind}' {_NEEDS_ROS2}", entity.where)
     if kind not in ATTRIBUTES:
-        raise LaunchFileError(f"unknown action '{kind}'", entity.where)
+        guess = difflib.get_close_matches(kind, [*ATTRIBUTES, *ROS2_ACTIONS], n=1)
+        hint = f" (did you mean '{guess[0]}'?)" if guess else ""
+        raise LaunchFileError(f"unknown action '{kind}'{hint}", entity.where)
     body_is_list = entity.frontend == YAML and isinstance(getattr(entity, "body", None), list)
     if not body_is_list and entity.frontend == YAML and not isinstance(getattr(entity, "body", None), dict):
         raise LaunchFileError(f"action '{kind}' needs a mapping of attributes", entity.where)

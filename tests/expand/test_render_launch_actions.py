@@ -85,6 +85,7 @@ def test_a_template_using_the_tutorials_actions_renders_and_runs(tmp_path):
         ("- shutdown: {}", "action 'shutdown' needs the ros2 backend"),
         ("- node: {pkg: demo, exec: talker, name: n, launch-prefix: gdb}", "attribute 'launch-prefix' of 'node' needs"),
         ("- teleport: {}", "unknown action 'teleport'"),
+        ("- nod: {pkg: demo, exec: talker}", "unknown action 'nod' (did you mean 'node'?)"),
         ("- node: {pkg: demo, exec: talker, name: n, respawn: true}", "must be a string"),
     ],
 )
