@@ -140,6 +140,21 @@ def _list(node, fqns: list[str]) -> None:
     _reply(True, parameters=parameters, unanswered=unanswered)
 
 
+def _closest(node, fqn: str, name: str) -> str:
+    """` (did you mean 'x'?)` from the node's own parameter names, or nothing (asked only after a
+    miss, so a get or set that finds its parameter costs no extra call)."""
+    import difflib
+
+    from rcl_interfaces.srv import ListParameters
+
+    try:
+        listed = _call(node, ListParameters, f"{fqn}/list_parameters", ListParameters.Request())
+    except TimeoutError:
+        return ""
+    guess = difflib.get_close_matches(name, list(listed.result.names), n=1)
+    return f" (did you mean {guess[0]!r}?)" if guess else ""
+
+
 def main(argv: list[str]) -> int:
     import rclpy
     from rcl_interfaces.msg import ParameterType
@@ -156,7 +171,7 @@ def main(argv: list[str]) -> int:
         got = _call(node, GetParameters, f"{fqn}/get_parameters", GetParameters.Request(names=[name]))
         current = got.values[0] if got.values else None
         if current is None or current.type == ParameterType.PARAMETER_NOT_SET:
-            _reply(False, reason=f"node {fqn} has no parameter {name!r}", code="not_found")
+            _reply(False, reason=f"node {fqn} has no parameter {name!r}{_closest(node, fqn, name)}", code="not_found")
             return 0
         if op == "get":
             _reply(True, _python_value(current))

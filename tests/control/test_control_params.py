@@ -88,13 +88,18 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     assert yaml.safe_load(params_file.read_text())["/robot1/controller"]["ros__parameters"]["max_speed"] == 1.0
     assert robot(cluster.view("tiny"), "robot1").overrides
 
-    # So is a parameter the node does not have, to get or to set.
+    # So is a parameter the node does not have, to get or to set; a near miss is named.
     for args in (["get"], ["set", "0.5"]):
         unknown = param(cluster, args[0], "robot1", "controller", "no_such_parameter", *args[1:])
         assert unknown.returncode == 2, unknown.stdout + unknown.stderr
         assert unknown.stderr == (
             "fleet: error: <command line>: node /robot1/controller has no parameter 'no_such_parameter'\n"
         ), unknown.stderr
+    typo = param(cluster, "get", "robot1", "controller", "max_sped")
+    assert typo.returncode == 2 and typo.stderr == (
+        "fleet: error: <command line>: node /robot1/controller has no parameter 'max_sped' "
+        "(did you mean 'max_speed'?)\n"
+    ), typo.stderr
     malformed = param(cluster, "get", "robot1", "controller", "max speed")
     assert malformed.returncode == 2 and malformed.stderr.count("\n") == 1, malformed.stderr
     assert malformed.stderr.startswith("fleet: error: <command line>: invalid parameter request: name: ")
