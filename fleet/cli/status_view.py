@@ -61,7 +61,8 @@ def view_tables(view, agents: bool = True):
         if reasons:
             cells.append("" if row.error else row.reason)
         table.add_row(*([row.fleet, *cells] if several_fleets else cells))
-    tables.append(table)
+    # An empty table reads as a failure to show: say there is nothing, as `kubectl get` does.
+    tables.append(table if view.robots else Text("Robots: none deployed (`fleet deploy SPEC` runs a fleet)"))
     for world in view.worlds:
         tables.append(_world_line(world))
     for row in view.robots:

@@ -26,3 +26,11 @@ def test_an_agents_uptime_is_its_own_reply_time_minus_its_start(capsys):
     lines = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines() if line.startswith("rack")}
     assert lines["rack_a"][1:4] == ["online", "12", "min"], lines
     assert lines["rack_b"][1:4] == ["online", "30", "s"], lines
+
+
+def test_agents_without_robots_say_none_is_deployed(capsys):
+    """An empty robots table read as a failure to show them: it says there are none, and how to run some."""
+    now = 1_800_000_000.0
+    print_view(build_view([status("local", now - 60, now)], [], now), console())
+    out = capsys.readouterr().out
+    assert "Robots: none deployed (`fleet deploy SPEC` runs a fleet)" in out and "ROBOT" not in out, out
