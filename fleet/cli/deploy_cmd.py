@@ -174,14 +174,12 @@ def _daemon_environment_hints(problems: dict[str, dict[str, str]], endpoint: str
     """For a package the local daemon's agents did not find: they search the AMENT_PREFIX_PATH the
     daemon started with, which a workspace sourced since (`source install/setup.bash`) did not
     change. Says whether this shell's finds it, and how to restart the daemon with it."""
-    from fleet.client.local_daemon import daemon_runs
+    from fleet.client.local_daemon import agents_reached
     from fleet.runtime.ament import indexes, missing_package
 
+    local = set(agents_reached(endpoint)) & set(problems)
     packages = {
-        package
-        for agent, robots in problems.items()
-        for problem in robots.values()
-        if (package := missing_package(problem)) and daemon_runs(agent, endpoint)
+        package for agent in local for problem in problems[agent].values() if (package := missing_package(problem))
     }
     hints = []
     for package in sorted(packages):

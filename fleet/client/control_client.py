@@ -36,6 +36,30 @@ def connect(
     return ControlClient([endpoint or default_endpoint()], config_file(zenoh_config), on_wait)
 
 
+def _open_session(
+    connect: list[str], zenoh_config: Path | None, on_wait: Callable[[str], None] | None
+) -> zenoh.Session:
+    """A client session, waiting up to OPEN_TIMEOUT_MS; `on_wait` is told once it has waited
+    OPEN_NOTE_AFTER (Zenoh's open blocks, so a timer thread says it)."""
+    note = None
+    if on_wait is not None:
+        note = threading.Timer(
+            OPEN_NOTE_AFTER,
+            on_wait,
+            [
+                f"the fleet router at {', '.join(connect)} has not taken the connection in {OPEN_NOTE_AFTER:.0f} s "
+                f"(closing the link of an agent that just went away?); waiting up to {OPEN_TIMEOUT_MS / 1000:.0f} s"
+            ],
+        )
+        note.daemon = True
+        note.start()
+    try:
+        return open_client(connect, zenoh_config, settings={"transport/unicast/open_timeout": OPEN_TIMEOUT_MS})
+    finally:
+        if note is not None:
+            note.cancel()
+
+
 class ControlClient:
     def __init__(
         self, connect: list[str], zenoh_config: Path | None = None, on_wait: Callable[[str], None] | None = None
@@ -44,26 +68,7 @@ class ControlClient:
         self.connect = connect
         self.zenoh_config = zenoh_config
         self.on_wait = on_wait
-        note = None
-        if on_wait is not None:
-            where = ", ".join(connect)
-            note = threading.Timer(
-                OPEN_NOTE_AFTER,
-                on_wait,
-                [
-                    f"the fleet router at {where} has not taken the connection in {OPEN_NOTE_AFTER:.0f} s (closing "
-                    f"the link of an agent that just went away?); waiting up to {OPEN_TIMEOUT_MS / 1000:.0f} s"
-                ],
-            )
-            note.daemon = True
-            note.start()
-        try:
-            self.session = open_client(
-                connect, zenoh_config, settings={"transport/unicast/open_timeout": OPEN_TIMEOUT_MS}
-            )
-        finally:
-            if note is not None:
-                note.cancel()
+        self.session = _open_session(connect, zenoh_config, on_wait)
 
     def close(self) -> None:
         self.session.close()
@@ -89,7 +94,7 @@ class ControlClient:
                     f"the fleet router has not answered for {timeout:.0f} s (closing the link of an agent "
                     f"that just went away?); waiting up to {ROUTER_STALL:.0f} s more"
                 )
-            statuses, registries, timed_out = self._status_replies(p.status_query(fleet), ROUTER_STALL)
+            statuses, registries, _ = self._status_replies(p.status_query(fleet), ROUTER_STALL)
         # A router that holds no fleet answers the wildcard with nothing, but any fleet by name.
         if not registries and (fleet is not None or not self._status_replies(p.registry_key(p.NO_FLEET), timeout)[1]):
             config = f": {self.zenoh_config}" if self.zenoh_config else ""

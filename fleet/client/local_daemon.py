@@ -44,13 +44,13 @@ def running_agents(pid: int) -> list[str]:
     return daemon_agents([value for flag, value in itertools.pairwise(argv) if flag == "--agent"])
 
 
-def daemon_runs(agent: str, endpoint: str) -> bool:
-    """Whether `agent` is one this computer's local daemon runs, reached at `endpoint`: it then
-    has the environment the daemon was started with, not the CLI's."""
+def agents_reached(endpoint: str) -> list[str]:
+    """The agents of this computer's local daemon when `endpoint` is its router (none otherwise):
+    they have the environment the daemon was started with, not the CLI's."""
     from fleet.wire.session import on_loopback
 
     pid = running_pid(state_dir())
-    return pid is not None and on_loopback(endpoint) and agent in running_agents(pid)
+    return running_agents(pid) if pid is not None and on_loopback(endpoint) else []
 
 
 def start(
