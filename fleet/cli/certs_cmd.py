@@ -71,7 +71,7 @@ def certs(
         return
     router = security.config_path(out, security.ROUTER)
     console().print(
-        f"fleet {expansion.fleet}: {len(made)} new file(s) in {out}/ ({', '.join(made) or 'all certificates kept'})\n"
+        f"fleet {expansion.fleet}: {_made_summary(made)} in {out}/, configs written\n"
         f"  router:   fleet router --listen tls/0.0.0.0:7447 --zenoh-config {router}\n"
         f"  agent:    fleet agent --name NAME --connect tls/ROUTER:7447 --zenoh-config {out}/agent-NAME.json5\n"
         f"  operator: fleet status --connect tls/ROUTER:7447 --zenoh-config {out}/operator-{operator[0]}.json5\n"
@@ -84,3 +84,11 @@ def certs(
             "computers cannot verify the router. For them, give --router-address with the address "
             "they dial, into a new --out directory (an existing certificate is kept)."
         )
+
+
+def _made_summary(made: list[str]) -> str:
+    """What `certs` created: certificates (each with its key beside it), or that it kept them all."""
+    if not made:
+        return "no new certificate (all kept)"
+    noun = "certificate" if len(made) == 1 else "certificates"
+    return f"{len(made)} new {noun} with their keys ({', '.join(made)})"

@@ -27,3 +27,11 @@ def test_a_router_certificate_for_this_computer_only_is_pointed_out(tmp_path):
     assert NOTE not in certs(tmp_path / "lan", "--router-address", "10.0.0.1")
     # A certificate kept from before is what counts, not this call's --router-address.
     assert NOTE in certs(tmp_path / "local", "--router-address", "10.0.0.1")
+
+
+def test_what_it_made_is_counted_as_certificates(tmp_path):
+    # Each certificate comes with its key and the configs are rewritten every time: the count is
+    # of certificates, and a second run makes none.
+    first = certs(tmp_path / "out")
+    assert "4 new certificates with their keys (ca.pem, router.pem, local.pem, operator.pem)" in first, first
+    assert "no new certificate (all kept)" in certs(tmp_path / "out")
