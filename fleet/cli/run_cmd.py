@@ -36,10 +36,15 @@ def _launch_args(items: list[str]) -> dict[str, str]:
 
 def _print_line(process: str, line: str) -> None:
     # One write per line, so lines of different nodes never interleave mid-line.  `ros2 launch`
-    # prefixes its lines itself.
-    prefix = "" if process.startswith("ros2-launch") else f"[{process}] "
+    # prefixes its lines itself, and the session's own lines (process "") say what they are about.
+    prefix = "" if not process or process.startswith("ros2-launch") else f"[{process}] "
     sys.stdout.write(f"{prefix}{line}\n")
     sys.stdout.flush()
+
+
+def _node_of(status) -> str:
+    """The node a process runs, by its full name ("" for an executable that is no node)."""
+    return status.fqn or status.name or ""
 
 
 def _summary(session) -> str:
@@ -48,7 +53,7 @@ def _summary(session) -> str:
         f"logs in {session.log_dir}"
     ]
     for status in session.status():
-        rows.append(f"  {status.process:<16} pid {status.pid or '-':<8} {status.fqn or status.name}")
+        rows.append(f"  {status.process:<16} pid {status.pid or '-':<8} {_node_of(status)}".rstrip())
     return "\n".join(rows)
 
 
@@ -104,9 +109,6 @@ def run(
     previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         session.start()
-        if session.plan is not None:
-            for message in session.plan.logs:  # `log` actions, as launch prints them
-                _print_line("ros2-launch", f"[INFO] [launch.user]: {message}")
         sys.stderr.write(_summary(session) + "\n")
         sys.stderr.flush()
         # Like ros2 launch: run until interrupted or until every process has ended for good.
@@ -122,7 +124,7 @@ def run(
     failed = session.failed()
     for status in failed:
         sys.stderr.write(
-            f"fleet: {status.process} ({status.fqn or status.name}) failed with exit code "
+            f"fleet: {status.process}{f' ({node})' if (node := _node_of(status)) else ''} failed with exit code "
             f"{status.exit_code}; log: {session.log_file(status.process)}\n"
         )
     if failed:

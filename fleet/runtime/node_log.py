@@ -12,6 +12,7 @@ import collections
 import logging
 import re
 import threading
+import time
 from collections.abc import Callable, Iterable
 from logging.handlers import RotatingFileHandler
 from pathlib import Path
@@ -29,6 +30,19 @@ def logger_name(fqn: str) -> str:
     return fqn.strip("/").replace("/", ".")
 
 
+def launch_line(process: str, severity: str, message: str) -> str:
+    """A line the launch session writes into a process's log about the process itself (started,
+    ended), as `ros2 launch` reports its processes: under the process's name (`controller-1`),
+    in the rcutils layout so that it parses like the nodes' own lines."""
+    return LOG_FORMAT.format(severity=severity, time=f"{time.time():.9f}", name=process, message=message)
+
+
+def is_launch_logger(logger: str) -> bool:
+    """Whether a line's logger is a process's (launch_line), not a node's: a process name holds
+    a dash (`controller-1`), which no ROS name can."""
+    return "-" in logger
+
+
 def logger_of(line: str) -> str | None:
     """The logger that printed `line`, None for a line without one (it continues the one before)."""
     match = LOG_LINE.match(line)
@@ -41,12 +55,17 @@ def belongs_to(logger: str, node_logger: str) -> bool:
 
 
 def lines_of(lines: Iterable[str], node_logger: str) -> list[str] | None:
-    """The lines of `lines` that the node of `node_logger` printed; None when none names a logger
-    at all (a console format of the user's own), so they cannot be told apart."""
+    """The lines of `lines` that the node of `node_logger` printed, and the launch session's lines
+    about their process (it started, it ended: every node of it); None when no node's line names
+    a logger at all (a console format of the user's own), so they cannot be told apart."""
     kept: list[str] = []
     named = mine = False
     for line in lines:
         logger = logger_of(line)
+        if logger is not None and is_launch_logger(logger):  # about the process: every node's
+            kept.append(line)
+            mine = False
+            continue
         if logger is not None:
             named, mine = True, belongs_to(logger, node_logger)
         if mine:
@@ -73,12 +92,12 @@ class ProcessOutput:
         self._lock = threading.Lock()
         self._closed = False
 
-    def add(self, line: str) -> None:
+    def add(self, line: str, echo: bool = True) -> None:
         with self._lock:
             self._tail.append(line)
             if not self._closed:
                 self.log.emit(logging.makeLogRecord({"msg": line}))
-        if self.echo is not None:
+        if echo and self.echo is not None:
             self.echo(line)
 
     def tail(self, count: int) -> list[str]:

@@ -16,6 +16,7 @@ import contextlib
 import datetime
 import os
 import select
+import shlex
 import shutil
 import signal
 import subprocess
@@ -30,7 +31,7 @@ from fleet.rules import STABLE_AFTER
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
-from fleet.runtime.node_log import ProcessOutput
+from fleet.runtime.node_log import TAIL_LINES, ProcessOutput, is_launch_logger, launch_line, logger_of
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
 BACKENDS = ("auto", "embedded", "ros2")
@@ -41,6 +42,7 @@ POLL_INTERVAL = 0.05  # while stopping: a process group has no fd to wait on, so
 # Process states, as status() reports them.
 STARTING = "starting"  # not spawned yet
 RUNNING = "running"
+SESSION = ""  # on_line's process name for the session's own lines (they name what they are about)
 BACKOFF = "backoff"  # exited, respawn pending
 EXITED = "exited"  # exited with 0, no respawn
 FAILED = "failed"  # exited non-zero (or by a signal), no respawn
@@ -123,10 +125,17 @@ class _Supervised:
         self.started_at = 0.0
         self.restart_at: float | None = None
         self.failures_in_row = 0
+        self.end_logged = True  # whether its log says how its last process ended (none ran yet)
 
     @property
     def pid(self) -> int | None:
         return self.popen.pid if self.popen is not None else None
+
+    def printed(self, count: int) -> list[str]:
+        """The last `count` lines its processes printed: its log without the session's own lines
+        on when each started and how it ended."""
+        lines = [line for line in self.output.tail(TAIL_LINES) if not is_launch_logger(logger_of(line) or "")]
+        return lines[-count:] if count > 0 else []
 
     def finished(self) -> bool:
         """True when its process and every other member of its group are gone."""
@@ -163,7 +172,9 @@ class LaunchSession:
         self.requested_backend = backend
         self.backend: str | None = None  # the backend start() chose
         self.sigterm_after, self.sigkill_after = stop_timeouts
-        self.on_line = on_line  # on_line(process_name, line) for processes with output: screen
+        # on_line(process_name, line): what processes with output: screen print, and (process
+        # name SESSION) the session's own lines: `log` actions, every process's start and end.
+        self.on_line = on_line
         self.plan: LaunchPlan | None = None
         self._processes: list[_Supervised] = []
         self._lock = threading.Lock()
@@ -182,6 +193,9 @@ class LaunchSession:
         if self._thread is not None:
             raise RuntimeError("session already started")
         specs = self._prepare()
+        if self.on_line is not None and self.plan is not None:
+            for message in self.plan.logs:  # `log` actions say their piece before anything starts
+                self.on_line(SESSION, f"[INFO] [launch.user]: {message}")
         self.log_dir.mkdir(parents=True, exist_ok=True)
         for spec in specs:
             echo = None
@@ -235,7 +249,7 @@ class LaunchSession:
             return ""
         nodes = process.spec.nodes
         who = nodes[0].name if len(nodes) == 1 and nodes[0].name else process.spec.name
-        last = process.output.tail(1)
+        last = process.printed(1)
         return ended_problem(who, process.exit_code, process.restarts, last[0] if last else "")
 
     def hosted_nodes(self) -> list[NodeLaunch]:
@@ -245,8 +259,8 @@ class LaunchSession:
         return [node for node in self.plan.nodes if composable(node)]
 
     def tail(self, node: str, lines: int = 20) -> list[str]:
-        """Last lines of the process hosting `node` (a node name, fqn, or process name)."""
-        return self._find(node).output.tail(lines)
+        """Last lines the process hosting `node` (a node name, fqn, or process name) printed."""
+        return self._find(node).printed(lines)
 
     def log_file(self, node: str) -> Path:
         return self._find(node).output.path
@@ -275,6 +289,7 @@ class LaunchSession:
         for process in self._processes:
             if process.pump is not None:
                 process.pump.join(timeout=1.0)  # the last lines a node printed
+            self._log_end(process)
             process.output.close()
         self._close_wake_pipe()
 
@@ -482,8 +497,32 @@ class LaunchSession:
             process.exit_code = None
             process.started_at = time.monotonic()
             process.restart_at = None
+            process.end_logged = False
+        self._say(process, "INFO", f"process started with pid [{popen.pid}]")
         assert popen.stdout is not None  # spawn() pipes the output when given no file
         process.pump = process.output.follow(popen.stdout)
+
+    def _log_end(self, process: _Supervised) -> None:
+        """Say how the process ended, once, after its last lines (as `ros2 launch` reports a
+        process that finished or died): `fleet logs` shows where one process of a node ends and
+        the next begins."""
+        popen = process.popen
+        if process.end_logged or popen is None or popen.returncode is None:
+            return
+        process.end_logged = True
+        if popen.returncode == 0:
+            self._say(process, "INFO", f"process has finished cleanly [pid {popen.pid}]")
+        else:
+            what = f"pid {popen.pid}, exit code {popen.returncode}, cmd: {shlex.join(process.spec.cmd)}"
+            self._say(process, "ERROR", f"process has died [{what}]")
+
+    def _say(self, process: _Supervised, severity: str, message: str) -> None:
+        """A line of the session's own about a process, into its log; on screen whatever the
+        process's `output` (ros2 launch prints these for every process)."""
+        line = launch_line(process.spec.name, severity, message)
+        process.output.add(line, echo=False)
+        if self.on_line is not None:
+            self.on_line(SESSION, line)
 
     def _check(self, process: _Supervised, now: float) -> bool:
         """Notice an exit and decide on a respawn (called with the lock held).  Returns True
@@ -500,6 +539,7 @@ class LaunchSession:
             # Its last lines are read before it is declared ended: they say why (status quotes them).
             if process.pump is not None:
                 process.pump.join(timeout=0.5)
+            self._log_end(process)
             if not process.spec.respawn:
                 process.state = EXITED if process.exit_code == 0 else FAILED
                 return False

@@ -10,7 +10,7 @@ from fleet.nodes.host import RequestError, parse_request
 from fleet.runtime.hosting import add_request, host_command, place
 from fleet.runtime.isolation import plan_processes
 from fleet.runtime.launch_file import load_launch_file
-from fleet.runtime.node_log import lines_of, logger_name, logger_of
+from fleet.runtime.node_log import is_launch_logger, launch_line, lines_of, logger_name, logger_of
 from tests.runtime.test_command_line import _robot_plan
 
 
@@ -41,6 +41,20 @@ def test_the_lines_of_one_node_of_a_shared_process():
     assert lines_of(lines, "r1.controller") == lines[1:2] + lines[3:5]
     assert lines_of(lines, "r1.battery") == [lines[2]]
     assert lines_of(["plain", "lines"], "r1.controller") is None  # a format without loggers
+
+
+def test_the_lines_about_a_shared_process_are_every_one_of_its_nodes():
+    lines = [
+        launch_line("composite-1", "INFO", "process started with pid [10]"),
+        "[INFO] [1.0] [r1.controller]: driving",
+        "[INFO] [1.1] [r1.battery]: 80%",
+        launch_line("composite-1", "ERROR", "process has died [pid 10, exit code -9, cmd: x]"),
+        "left by no logger after the process line: nobody's",
+    ]
+    assert lines_of(lines, "r1.controller") == [lines[0], lines[1], lines[3]]
+    assert lines_of(lines, "r1.battery") == [lines[0], lines[2], lines[3]]
+    assert logger_of(lines[3]) == "composite-1" and is_launch_logger("composite-1")
+    assert not is_launch_logger("r1.controller")
 
 
 def test_agent_isolation_leaves_composable_nodes_to_the_host(prefix, tmp_path):

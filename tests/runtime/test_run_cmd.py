@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -10,6 +11,16 @@ import pytest
 
 from fleet.testing.poll import poll
 from tests.runtime.runtime_helpers import pid_alive
+
+# The session's own line about a process, on screen and in its log: [INFO] [time] [hello-1]: ...
+LAUNCH_LINE = re.compile(r"^\[(INFO|ERROR)\] \[[0-9.]+\] \[([a-z]+-[0-9]+)\]: (process [a-z ]+)")
+
+
+def screen_launch_lines(out: str) -> list[tuple[str, str, str]]:
+    """(severity, process, what) of the session's lines, in order of process (their order
+    across processes is the processes' own)."""
+    found = [(m[1], m[2], m[3]) for line in out.splitlines() if (m := LAUNCH_LINE.match(line))]
+    return sorted(found, key=lambda found: found[1])
 
 
 def fleet_run(prefix, *args, **kwargs) -> subprocess.Popen:
@@ -54,15 +65,28 @@ def test_screen_output_and_exit_codes(prefix, write_launch, tmp_path):
     runner = fleet_run(prefix, path, "who:=world", "--log-dir", tmp_path / "logs")
     out, err = runner.communicate(timeout=60)
     assert runner.returncode == 0, err
-    assert out == "[hello-1] hello world\n"
+    # The screen has what output: screen nodes print, and (as ros2 launch prints them) when every
+    # process started and how it ended; output: log nodes print only into their log.
+    assert [line for line in out.splitlines() if not LAUNCH_LINE.match(line)] == ["[hello-1] hello world"], out
+    assert screen_launch_lines(out) == [
+        ("INFO", "hello-1", "process started with pid "),
+        ("INFO", "hello-1", "process has finished cleanly "),
+        ("INFO", "hello-2", "process started with pid "),
+        ("INFO", "hello-2", "process has finished cleanly "),
+    ]
     assert "hello-1" in err and "hello-2" in err  # the start-up status
-    assert (tmp_path / "logs" / "hello-2.log").read_text() == "hello quiet\n"
+    log = (tmp_path / "logs" / "hello-2.log").read_text().splitlines()
+    assert [line for line in log if not LAUNCH_LINE.match(line)] == ["hello quiet"], log
+    assert "process started" in log[0] and "finished cleanly" in log[-1], log
 
     failing = write_launch("launch:\n- node: {pkg: demo, exec: fail, output: screen}\n", "fail.launch.yaml")
     runner = fleet_run(prefix, failing, "--log-dir", tmp_path / "logs2")
     out, err = runner.communicate(timeout=60)
     assert runner.returncode == 1
-    assert out == "[fail-1] oops\n"
+    assert [line for line in out.splitlines() if not LAUNCH_LINE.match(line)] == ["[fail-1] oops"], out
+    died = out.splitlines()[-1]
+    assert LAUNCH_LINE.match(died) and "[fail-1]: process has died [pid " in died, out
+    assert f"exit code 5, cmd: {prefix.root}" in died, died
     assert "fail-1" in err and "exit code 5" in err
 
 
@@ -81,7 +105,8 @@ def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
         while len(pids) < 2:
             line = runner.stdout.readline()
             assert line, "fleet run ended early"
-            pids.append(int(line.split()[-1]))
+            if line.startswith("[sleeper-"):  # the node's own line, not launch's about it
+                pids.append(int(line.split()[-1]))
         runner.send_signal(signum)
         runner.wait(timeout=20)
         assert runner.returncode == 0, runner.stderr.read()
@@ -128,7 +153,12 @@ def test_log_actions_are_printed(prefix, write_launch, tmp_path):
     runner = fleet_run(prefix, path, "who:=you", "--log-dir", tmp_path / "logs")
     out, err = runner.communicate(timeout=60)
     assert runner.returncode == 0, err
-    assert out == "[INFO] [launch.user]: hello you\n"
+    # as ros2 launch does: the log action before the process it precedes starts
+    assert out.splitlines()[0] == "[INFO] [launch.user]: hello you", out
+    assert screen_launch_lines(out) == [
+        ("INFO", "hello-1", "process started with pid "),
+        ("INFO", "hello-1", "process has finished cleanly "),
+    ]
 
 
 def test_empty_launch_argument_is_malformed_as_in_ros2_launch(prefix, write_launch, tmp_path):

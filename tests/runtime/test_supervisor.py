@@ -170,6 +170,30 @@ def test_a_node_that_ended_says_how_how_often_and_its_last_words(prefix, write_l
     assert supervisor.ended_problem("composite-1", -9, 0) == "composite-1 was killed by SIGKILL"
 
 
+def test_the_log_says_when_each_process_started_and_how_it_ended(prefix, write_launch, tmp_path):
+    # As ros2 launch reports its processes; `fleet logs` then shows where one process of a node
+    # ends and the next begins.  What the node printed (tail, status) leaves these lines out.
+    prefix.add("quitter", '#!/bin/sh\necho "bye from $$"\nexit 3\n')
+    session = session_for(
+        prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: quitter, respawn: 'true', respawn_delay: 0.1}\n"
+    )
+    with session:
+        poll(lambda: session.status()[0].restarts, until=lambda n: n >= 3, timeout=10, interval=0.05, what="respawns")
+        printed = session.tail("quitter-1", 3)
+        assert len(printed) == 3 and all(line.startswith("bye from ") for line in printed), printed
+    log = (tmp_path / "logs" / "quitter-1.log").read_text().splitlines()
+    script = prefix.root / "lib" / "demo" / "quitter"
+    for first in range(0, 6, 3):  # two whole processes: started, its line, died
+        started, said, died = log[first : first + 3]
+        pid = re.fullmatch(r"\[INFO\] \[[0-9.]+\] \[quitter-1\]: process started with pid \[(\d+)\]", started)
+        assert pid, log
+        assert said == f"bye from {pid[1]}", log
+        assert died.startswith("[ERROR] "), log
+        assert died.endswith(f"[quitter-1]: process has died [pid {pid[1]}, exit code 3, cmd: {script} --ros-args]"), (
+            log
+        )
+
+
 def test_backoff_grows_exponentially():
     assert backoff_delay(2.0, 1) == 2.0
     assert backoff_delay(2.0, 2) == 4.0
