@@ -89,6 +89,13 @@ def test_screen_output_and_exit_codes(prefix, write_launch, tmp_path):
     assert f"exit code 5, cmd: {prefix.root}" in died, died
     assert "fail-1" in err and "exit code 5" in err
 
+    # An executable is no node: its rows name its process alone
+    command = write_launch("launch:\n- executable: {cmd: sh -c 'exit 6'}\n", "command.launch.yaml")
+    runner = fleet_run(prefix, command, "--log-dir", tmp_path / "logs3")
+    _, err = runner.communicate(timeout=60)
+    assert runner.returncode == 1
+    assert "fleet: sh-1 failed with exit code 6" in err and "None" not in err, err
+
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
