@@ -86,7 +86,8 @@ def up(
         [],
         "--agent",
         "-a",
-        help="Also run an agent of this name (repeatable): a spec for several computers on this one.",
+        help="Also run an agent of this name (repeatable): a spec for several computers on this one. "
+        "A daemon running without it is restarted with it, its fleets kept.",
     ),
 ) -> None:
     """Start the local background daemon (router + agent `local`); state in $FLEET_STATE_DIR."""
@@ -99,6 +100,8 @@ def up(
         if problem := rules.key_name_problem(name):
             raise FleetError(f"agent name {problem}", Location(f"--agent {name}"))
     endpoint = listen or default_endpoint()
-    pid = local_daemon.start(endpoint, config_file(zenoh_config), agents=agents)
+    pid = local_daemon.start(
+        endpoint, config_file(zenoh_config), agents=agents, announce=lambda message: typer.echo(message, err=True)
+    )
     running = ", ".join(local_daemon.running_agents(pid))
     typer.echo(f"fleet daemon running (pid {pid}) on {endpoint} with agents {running}; state in {rules.state_dir()}")

@@ -33,15 +33,20 @@ def running_pid(root: Path) -> int | None:
     return None
 
 
-def running_agents(pid: int) -> list[str]:
-    """The agents the daemon `pid` runs, from its command line."""
+def _options(pid: int, flag: str) -> list[str]:
+    """The values of `flag` on the daemon `pid`'s command line (as start() wrote it)."""
     import psutil
 
     try:
         argv = psutil.Process(pid).cmdline()
     except psutil.Error:
         return []
-    return daemon_agents([value for flag, value in itertools.pairwise(argv) if flag == "--agent"])
+    return [value for option, value in itertools.pairwise(argv) if option == flag]
+
+
+def running_agents(pid: int) -> list[str]:
+    """The agents the daemon `pid` runs, from its command line."""
+    return daemon_agents(_options(pid, "--agent"))
 
 
 def agents_reached(endpoint: str) -> list[str]:
@@ -54,22 +59,36 @@ def agents_reached(endpoint: str) -> list[str]:
 
 
 def start(
-    listen: str, zenoh_config: Path | None = None, root: Path | None = None, agents: list[str] | tuple[str, ...] = ()
+    listen: str,
+    zenoh_config: Path | None,
+    *,
+    announce: Callable[[str], None],
+    root: Path | None = None,
+    agents: list[str] | tuple[str, ...] = (),
 ) -> int:
     """Start the daemon detached with `local` and `agents` (or find it running with them all);
-    returns once every one of them answers."""
+    returns once every one of them answers.  A daemon running without some of `agents` is
+    started again with its agents and those, after telling `announce`."""
     root = root or state_dir()
     names = daemon_agents(agents)
     pid = running_pid(root)
     if pid is not None:
         runs = running_agents(pid)
         missing = [name for name in names if name not in runs]
-        if missing:
-            raise ControlError(
-                f"the local daemon (pid {pid}) runs agents {', '.join(runs)}, not {', '.join(missing)}: "
-                f"stop it with `fleet down --all`, then start it with every agent you need"
-            )
-        return pid
+        if not missing:
+            return pid
+        # Its router and agents are one process: another agent takes a new daemon.  It listens
+        # where this one did, with the same Zenoh config (TLS stays TLS).  Its fleets stay: the
+        # router keeps them on disk, and the agents start their robots again.
+        listen = (_options(pid, "--listen") or [listen])[0]
+        configs = _options(pid, "--zenoh-config")
+        zenoh_config = Path(configs[0]) if configs else None
+        names = daemon_agents([*runs, *missing])
+        announce(
+            f"restarting the local daemon (pid {pid}) with agents {', '.join(names)}: "
+            "the robots it runs stop and start again"
+        )
+        stop(root)
     root.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "fleet.server.daemon", "--listen", listen, "--state-dir", str(root)]
     for name in names[1:]:  # `local` is the daemon's own
@@ -160,5 +179,5 @@ def connect_or_start(
                 "give their router with --connect (docs/multi-computer.md)"
             ) from None
     announce(f"starting the local fleet daemon on {default} (state in {state_dir()})")
-    start(default, config_file(zenoh_config))
+    start(default, config_file(zenoh_config), announce=announce)
     return connect(None, zenoh_config, on_wait)

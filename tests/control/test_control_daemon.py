@@ -8,6 +8,7 @@ import psutil
 import pytest
 
 from fleet.client.local_daemon import running_pid
+from fleet.testing.poll import poll
 from tests.control.control_helpers import wait_processes_gone
 
 pytestmark = pytest.mark.integration
@@ -99,9 +100,25 @@ def test_up_with_agents_runs_a_spec_for_several_computers_on_this_one(fresh_clus
         node_pids = {node["pid"] for r in status["robots"] for node in r["nodes"]}
         assert all(psutil.Process(p).ppid() == pid for p in node_pids)  # the daemon runs them all
 
-        # A running daemon without an agent asked for says so instead of pretending to run it.
+        # A running daemon without an agent asked for is one process with its router: it is
+        # started again with that agent too, said so; its fleet comes back on it.
         more = cluster.cli("up", "--agent", "rack_c", env=env)
-        assert more.returncode == 1 and "runs agents local, rack_a, rack_b, not rack_c" in more.stderr, more.stderr
+        assert more.returncode == 0, more.stdout + more.stderr
+        assert f"restarting the local daemon (pid {pid}) with agents local, rack_a, rack_b, rack_c" in more.stderr
+        assert "with agents local, rack_a, rack_b, rack_c" in more.stdout
+        wait_processes_gone([pid, *node_pids], 10)
+        pid = running_pid(state)
+        assert pid is not None
+        status = poll(
+            lambda: json.loads(cluster.cli("status", "--json", env=env).stdout),
+            until=lambda status: {r["state"] for r in status["robots"]} == {"running"},
+            timeout=30,
+            what="the fleet running again on the restarted daemon",
+        )
+        assert {(r["name"], r["agent"]) for r in status["robots"]} == {("robot1", "rack_a"), ("robot2", "rack_b")}
+        assert {a["name"] for a in status["agents"] if a["online"]} == {"local", "rack_a", "rack_b", "rack_c"}
+        node_pids = {node["pid"] for r in status["robots"] for node in r["nodes"]}
+        assert all(psutil.Process(p).ppid() == pid for p in node_pids)
 
         down = cluster.cli("down", "--all", env=env)
         assert down.returncode == 0, down.stdout + down.stderr
