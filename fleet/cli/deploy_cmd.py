@@ -19,6 +19,8 @@ from fleet.cli.options import SET_HELP, ConnectOption, ZenohConfigOption, client
 if TYPE_CHECKING:
     from rich.progress import TaskID
 
+    from fleet.plan.diff import DiffRow
+
 
 def register(app: typer.Typer) -> None:
     app.command("down")(down)
@@ -320,12 +322,16 @@ def diff(
     zenoh_config: Path | None = ZenohConfigOption,
     json: bool = typer.Option(False, "--json"),
 ) -> None:
-    """Show what `fleet deploy SPEC` would change, robot by robot."""
+    """Show what `fleet deploy SPEC` would change, robot by robot.
+
+    Exits 1 when a deploy would change something (as `kubectl diff`), 0 when every robot already
+    runs what the spec says."""
     from dataclasses import asdict
 
-    from fleet.cli.output import console, print_json, print_warnings
+    from fleet.cli.output import print_json, print_warnings
     from fleet.cli.render_cmd import load_and_expand
     from fleet.client import check_domain, visible_statuses
+    from fleet.errors import EXIT_FAILURE
     from fleet.plan import build_view, discovery_for
     from fleet.plan import diff as plan_diff
 
@@ -341,13 +347,20 @@ def diff(
     rows = plan_diff(expansion, view, deployed, discovery_for(expansion, view))
     if json:
         print_json([asdict(row) for row in rows])
-        return
+    else:
+        _print_diff(expansion.fleet, rows)
+    if any(row.change != "unchanged" for row in rows):
+        raise typer.Exit(EXIT_FAILURE)
+
+
+def _print_diff(fleet: str, rows: list[DiffRow]) -> None:
     from rich.text import Text
 
+    from fleet.cli.output import console
     from fleet.cli.output import table as make_table
 
     colours = {"start": "green", "stop": "red", "restart": "yellow", "move": "yellow", "hot-update": "cyan"}
-    table = make_table("robot", "agent", "change", "detail", title=f"fleet {expansion.fleet}: deploy would")
+    table = make_table("robot", "agent", "change", "detail", title=f"fleet {fleet}: deploy would")
     for row in rows:
         colour = colours.get(row.change)
         change = Text(row.change, style=colour or "")

@@ -98,8 +98,10 @@ def test_changing_one_robot_restarts_only_it(cluster):
     spec = cluster.spec()
     cluster.deploy(spec)
     before = {row.name: row.pids for row in cluster.view("tiny").robots}
+    same = cluster.cli("diff", str(spec), "--connect", cluster.endpoint)
+    assert same.returncode == 0, same.stdout + same.stderr  # nothing to change: 0, as kubectl diff
     diff = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--json", "--connect", cluster.endpoint)
-    assert diff.returncode == 0, diff.stderr
+    assert diff.returncode == 1, diff.stderr  # a change: 1, as kubectl diff
     rows = {row["robot"]: row for row in json.loads(diff.stdout)}
     assert {name: row["change"] for name, row in rows.items()} == {
         "robot1": "unchanged",
@@ -109,10 +111,10 @@ def test_changing_one_robot_restarts_only_it(cluster):
     period = {"node": "/robot2/sleeper", "name": "period", "old": 1.0, "new": 2.0}
     assert rows["robot2"]["parameters"] == [period] and rows["robot2"]["detail"] == "sleeper.period 1.0 -> 2.0"
     table = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.period=2.0", "--connect", cluster.endpoint)
-    assert "sleeper.period 1.0 -> 2.0" in table.stdout, table.stdout
+    assert table.returncode == 1 and "sleeper.period 1.0 -> 2.0" in table.stdout, table.stdout
     # The spec's warnings, as render and deploy give them (on stderr: stdout stays the JSON).
     typo = cluster.cli("diff", str(spec), "--set", "robot2.sleeper.perod=2.0", "--json", "--connect", cluster.endpoint)
-    assert typo.returncode == 0 and json.loads(typo.stdout), typo.stderr
+    assert typo.returncode == 1 and json.loads(typo.stdout), typo.stderr
     assert "warning: --set robot2.sleeper.perod=2.0: sleeper.perod is not a parameter" in typo.stderr, typo.stderr
 
     deployed = {row.name: row.deployed_generation for row in cluster.view("tiny").robots}

@@ -101,7 +101,7 @@ def test_clients_without_credentials_cannot_query_or_deploy(fresh_cluster, crede
     # (the router denies them the wildcard status every fleet's domain would be checked against).
     env = dict(cluster.env, FLEET_ZENOH_CONFIG=str(credentials["tiny"]), FLEET_CONNECT=cluster.endpoint)
     diff = cluster.cli("diff", str(spec), "--set", "robot1.sleeper.period=2.0", "--json", env=env)
-    assert diff.returncode == 0, diff.stdout + diff.stderr
+    assert diff.returncode == 1, diff.stdout + diff.stderr  # it would change robot1
     assert {row["robot"]: row["change"] for row in json.loads(diff.stdout)}["robot1"] == "restart"
     changed = cluster.cli("deploy", str(spec), "--set", "robot1.sleeper.period=2.0", env=env)
     assert changed.returncode == 0, changed.stdout + changed.stderr
