@@ -14,14 +14,14 @@ LISTED_ROBOTS = 10  # an error line names at most this many robots
 
 
 def fleet_status(client: ControlClient, fleet: str | None) -> tuple[list[p.StatusReply], list[p.RegistryReply]]:
-    """client.status(fleet); ControlError when `fleet` names a fleet no agent serves and the router
+    """client.status(fleet); BadRequest when `fleet` names a fleet no agent serves and the router
     has no record of: a mistyped name would otherwise show as an empty fleet, all running."""
     statuses, registries = client.status(fleet)
     if fleet is None or fleet in known_fleets(statuses, registries):
         return statuses, registries
     known = known_fleets(*client.status(None))
     listed = f"fleets: {', '.join(known)}" if known else "none is deployed"
-    raise ControlError(f"no fleet named {fleet!r} here ({listed})")
+    raise BadRequest(f"no fleet named {fleet!r} here ({listed})")
 
 
 def locate_robot(client: ControlClient, robot: str, fleet: str | None) -> tuple[str, str]:

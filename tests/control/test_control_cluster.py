@@ -85,8 +85,9 @@ def test_a_fleet_name_not_known_here_is_an_error_and_changes_nothing(cluster):
     before = {row.name: row.pids for row in cluster.view("tiny").robots}
     for command in (["status"], ["status", "--json"], ["status", "--watch"], ["down"]):
         done = cluster.cli(*command, "--fleet", "tinny", "--connect", cluster.endpoint)
-        assert done.returncode == 1 and done.stdout == "", done.stdout + done.stderr
-        assert re.fullmatch(r"fleet: error: no fleet named 'tinny' here \(fleets: .*\btiny\b.*\)\n", done.stderr)
+        assert done.returncode == 2 and done.stdout == "", done.stdout + done.stderr  # bad input, as a robot's name
+        unknown = r"fleet: error: <command line>: no fleet named 'tinny' here \(fleets: .*\btiny\b.*\)\n"
+        assert re.fullmatch(unknown, done.stderr), done.stderr
     # The refused down wrote nothing: the router holds no record of the name, tiny runs on as it was.
     with cluster.client() as client:
         registries = client.status("tinny")[1]
