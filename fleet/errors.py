@@ -139,6 +139,10 @@ class ControlError(FleetError):
     exit_code = EXIT_FAILURE
 
 
+class RouterSilent(ControlError):
+    """The router did not answer at all, even after waiting for it (a denial ends at once)."""
+
+
 class BadRequest(ControlError):
     """The fleet refused a request for what the command named (a robot or node it does not have, a
     name it cannot take): the user's input is wrong, so it is bad input (exit 2), found out by asking."""

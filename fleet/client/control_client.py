@@ -7,7 +7,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fleet.errors import BadRequest, ControlError
+from fleet.errors import BadRequest, ControlError, RouterSilent
 from fleet.wire import protocol as p
 from fleet.wire.session import config_file, default_endpoint, open_client
 
@@ -94,9 +94,14 @@ class ControlClient:
                     f"the fleet router has not answered for {timeout:.0f} s (closing the link of an agent "
                     f"that just went away?); waiting up to {ROUTER_STALL:.0f} s more"
                 )
-            statuses, registries, _ = self._status_replies(p.status_query(fleet), ROUTER_STALL)
+            statuses, registries, timed_out = self._status_replies(p.status_query(fleet), ROUTER_STALL)
         # A router that holds no fleet answers the wildcard with nothing, but any fleet by name.
         if not registries and (fleet is not None or not self._status_replies(p.registry_key(p.NO_FLEET), timeout)[1]):
+            if timed_out:  # asking again would wait as long: say so to the caller (RouterSilent)
+                raise RouterSilent(
+                    f"the fleet router did not answer the status query in {timeout + ROUTER_STALL:.0f} s "
+                    "(still starting, or overloaded? see its log)"
+                )
             config = f": {self.zenoh_config}" if self.zenoh_config else ""
             raise ControlError(
                 "the fleet router did not answer the status query (still starting? or access denied: the Zenoh "

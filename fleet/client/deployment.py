@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from fleet.client.control_client import ControlClient
 from fleet.client.robots import fleet_status, robot_place
-from fleet.errors import ControlError, FleetError, Location
+from fleet.errors import ControlError, FleetError, Location, RouterSilent
 from fleet.plan import (
     FleetView,
     RobotRow,
@@ -175,6 +175,8 @@ def visible_statuses(client: ControlClient, fleet: str) -> tuple[list[p.StatusRe
     the router denies the wildcard at once, and the others' domains cannot be checked."""
     try:
         return client.status(None)
+    except RouterSilent:  # not a denial: asking for the fleet alone would wait as long again
+        raise
     except ControlError:
         return client.status(fleet)
 

@@ -10,7 +10,8 @@ from types import SimpleNamespace
 import pytest
 
 from fleet.client.control_client import ROUTER_STALL, STATUS_TIMEOUT, ControlClient
-from fleet.errors import ControlError
+from fleet.client.deployment import visible_statuses
+from fleet.errors import ControlError, RouterSilent
 from fleet.wire import protocol as p
 
 
@@ -66,9 +67,23 @@ def test_a_query_that_ends_without_the_router_fails_at_once():
 
 def test_a_router_silent_even_then_is_an_error():
     client, session, said = scripted([TIMEOUT], [TIMEOUT], [])
-    with pytest.raises(ControlError, match="did not answer the status query"):
+    with pytest.raises(RouterSilent, match="did not answer the status query in 15 s"):
         client.status()
     assert session.timeouts == [STATUS_TIMEOUT, ROUTER_STALL, STATUS_TIMEOUT] and len(said) == 1
+
+
+def test_the_fleet_alone_is_asked_after_a_denial_not_after_silence():
+    """deploy and diff check every fleet's domain, or their own fleet's where the router denies
+    the wildcard: a router silent for the wildcard would be as silent for the fleet, and waited
+    for twice."""
+    fleet = ok(p.RegistryReply(fleet="tiny"))
+    client, session, _ = scripted([], [], [fleet])  # denied, nothing for NO_FLEET, then the fleet's
+    assert [registry.fleet for registry in visible_statuses(client, "tiny")[1]] == ["tiny"]
+    assert len(session.timeouts) == 3
+    client, session, _ = scripted([TIMEOUT], [TIMEOUT], [])
+    with pytest.raises(RouterSilent):
+        visible_statuses(client, "tiny")
+    assert session.timeouts == [STATUS_TIMEOUT, ROUTER_STALL, STATUS_TIMEOUT]
 
 
 def test_a_connection_the_router_does_not_take_is_waited_for_and_that_is_said(monkeypatch):
