@@ -58,6 +58,28 @@ def _coerce(value, current_type: int):
     return value
 
 
+def _type_mismatch(held: int, given: int) -> str:
+    """Why a node refused a value of another type than its parameter's, in the words of a YAML
+    parameter file (a node that allows dynamic typing takes it instead)."""
+    from rcl_interfaces.msg import ParameterType as T
+
+    words = {
+        T.PARAMETER_BOOL: "a bool (true or false)",
+        T.PARAMETER_INTEGER: "an integer",
+        T.PARAMETER_DOUBLE: "a double",
+        T.PARAMETER_STRING: "a string",
+        T.PARAMETER_BYTE_ARRAY: "a byte array",
+        T.PARAMETER_BOOL_ARRAY: "a bool array",
+        T.PARAMETER_INTEGER_ARRAY: "an integer array",
+        T.PARAMETER_DOUBLE_ARRAY: "a double array",
+        T.PARAMETER_STRING_ARRAY: "a string array",
+    }
+    reason = f"it holds {words.get(held, 'another type')}, and the value given is {words.get(given, 'another type')}"
+    if held == T.PARAMETER_STRING:
+        reason += " (quote it for a string: '\"...\"')"
+    return reason
+
+
 RESEND_PERIOD = 2.0  # s: a request unanswered this long is sent again (see call_service)
 
 
@@ -186,6 +208,8 @@ def main(argv: list[str]) -> int:
         outcome = result.results[0]
         if outcome.successful:
             _reply(True, value)
+        elif message.value.type != current.type:  # rclpy's reason names its enum: `expected 'Type.BOOL' got ...`
+            _reply(False, value, _type_mismatch(current.type, message.value.type))
         else:
             _reply(False, value, outcome.reason or "refused by the node")
         return 0

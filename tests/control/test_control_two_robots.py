@@ -94,6 +94,10 @@ def test_live_parameter_set_is_checked_and_kept(two_robots):
     cluster = two_robots
     refused = cluster.cli("param", "set", "robot1", "controller", "max_speed", "99", "--connect", cluster.endpoint)
     assert refused.returncode != 0 and "refused" in refused.stderr, refused.stderr
+    # A value of another type: the node's refusal in the words of a parameter file.
+    mistyped = cluster.cli("param", "set", "robot1", "controller", "loop", "maybe", "--connect", cluster.endpoint)
+    assert mistyped.returncode != 0, mistyped.stdout + mistyped.stderr
+    assert "refused loop=maybe: it holds a bool (true or false), and the value given is a string" in mistyped.stderr
     accepted = cluster.cli("param", "set", "robot1", "controller", "max_speed", "0.7", "--connect", cluster.endpoint)
     assert accepted.returncode == 0, accepted.stderr
     got = cluster.cli("param", "get", "robot1", "controller", "max_speed", "--connect", cluster.endpoint)
