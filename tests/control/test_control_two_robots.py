@@ -38,6 +38,14 @@ def two_robots(tmp_path_factory, domain_id):
         cluster.stop()
 
 
+def deployed(cluster: Cluster) -> Cluster:
+    """The fleet running as its spec says, whichever tests ran before this one (with none, or on
+    another xdist worker, it starts here; already so, the deploy changes nothing)."""
+    done = cluster.cli("deploy", str(cluster.spec_file), "--connect", cluster.endpoint, "--timeout", "90", timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return cluster
+
+
 def pids(view) -> dict[str, set[int]]:
     return {row.name: row.pids for row in view.robots}
 
@@ -68,7 +76,7 @@ def test_deploy_status_and_noop_redeploy(two_robots):
 
 
 def test_set_on_robot2_restarts_only_robot2_and_reaches_the_node(two_robots):
-    cluster = two_robots
+    cluster = deployed(two_robots)
     before = pids(cluster.view("two_robots"))
     done = cluster.cli(
         "deploy",
@@ -91,7 +99,7 @@ def test_set_on_robot2_restarts_only_robot2_and_reaches_the_node(two_robots):
 
 
 def test_live_parameter_set_is_checked_and_kept(two_robots):
-    cluster = two_robots
+    cluster = deployed(two_robots)
     refused = cluster.cli("param", "set", "robot1", "controller", "max_speed", "99", "--connect", cluster.endpoint)
     assert refused.returncode != 0 and "refused" in refused.stderr, refused.stderr
     # A value of another type: the node's refusal in the words of a parameter file.
@@ -126,7 +134,7 @@ def test_live_parameter_set_is_checked_and_kept(two_robots):
 
 
 def test_killed_agent_goes_offline_and_comes_back(two_robots):
-    cluster = two_robots
+    cluster = deployed(two_robots)
     robot2_pids = robot(cluster.view("two_robots"), "robot2").pids
     cluster.kill("agent-hostB", signal.SIGKILL)
     started = time.monotonic()
