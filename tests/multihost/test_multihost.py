@@ -6,13 +6,15 @@ command run on `sim`, as a user at the workstation would.  Checked: every robot 
 on one computer meets a robot from another (its safety node stops it on its lidar, and the other
 bumps into it); `fleet param`, `fleet logs` and `fleet restart` reach robots on other computers; a frozen world
 makes every robot `degraded` with the reason, and they recover; a pulled cable shows in status
-and the robots come back when it is plugged in; nothing is left running.
+and the robots come back when it is plugged in; nothing is left running.  And the same fleet with
+mutual TLS between the computers, set up as docs/multi-computer.md tells a user to.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -23,7 +25,7 @@ import psutil
 import pytest
 import yaml
 
-from fleet.runtime.node_log import belongs_to, logger_of
+from fleet.runtime.node_log import belongs_to, is_launch_logger, logger_of
 from fleet.testing.netns import Lan, netns_problem
 from fleet.testing.poll import poll
 from fleet.testing.processes import MARKER_VARIABLE, processes_marked
@@ -112,6 +114,34 @@ class Fleet:
         )
         for key in ("FLEET_CONNECT", "FLEET_ZENOH_CONFIG", "ROS_DISCOVERY_SERVER", "ROS_LOG_DIR"):
             self.env.pop(key, None)
+        self.zenoh_configs: dict[str, Path] = {}  # router, agent or "cli" -> its --zenoh-config (use_tls)
+
+    def use_tls(self) -> None:
+        """Mutual TLS between the computers, as docs/multi-computer.md says: the certificates made
+        on `sim` for the router's address there, each computer holding only its own files."""
+        sim = self.lan.hosts["sim"].address
+        certs = self.root / "certs"
+        spec = str(self.root / "lan.yaml")
+        made = subprocess.run(
+            [sys.executable, "-m", "fleet", "certs", spec, "--out", str(certs), "--router-address", sim],
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert made.returncode == 0, made.stdout + made.stderr
+        self.endpoint = f"tls/{sim}:{PORT}"
+        self.zenoh_configs = {"router": certs / "router.json5", "cli": certs / "operator-operator.json5"}
+        for agent in AGENT_HOSTS:
+            computer = self.root / f"computer-{agent}"  # a directory of any name on that computer
+            computer.mkdir()
+            for name in (f"agent-{agent}.json5", f"{agent}.pem", f"{agent}.key", "ca.pem"):
+                shutil.copy(certs / name, computer / name)
+            self.zenoh_configs[agent] = computer / f"agent-{agent}.json5"
+
+    def zenoh_config_args(self, role: str) -> list[str]:
+        config = self.zenoh_configs.get(role)
+        return ["--zenoh-config", str(config)] if config else []
 
     def spawn(self, key: str, host: str, *args: str) -> None:
         with open(self.root / f"{key}.log", "ab") as log:
@@ -129,7 +159,17 @@ class Fleet:
         self.start_agents("sim_host", "rack_a", "rack_b")
 
     def start_router(self) -> None:
-        self.spawn("router", "sim", "router", "--listen", self.endpoint, "--state-dir", str(self.root / "router"))
+        router_dir = str(self.root / "router")
+        self.spawn(
+            "router",
+            "sim",
+            "router",
+            "--listen",
+            self.endpoint,
+            "--state-dir",
+            router_dir,
+            *self.zenoh_config_args("router"),
+        )
 
     def start_agents(self, *agents: str) -> None:
         """Agents by name; each runs on the computer AGENT_HOSTS names."""
@@ -145,6 +185,7 @@ class Fleet:
                 self.endpoint,
                 "--state-dir",
                 str(self.root / "agents" / agent),
+                *self.zenoh_config_args(agent),
             )
 
     def stop_agent(self, agent: str) -> None:
@@ -159,8 +200,9 @@ class Fleet:
         self.start_agents(agent)
 
     def fleet(self, *args: str, timeout: float = 180) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-m", "fleet", *args, "--connect", self.endpoint, *self.zenoh_config_args("cli")]
         return subprocess.run(
-            self.lan.hosts["sim"].command(sys.executable, "-m", "fleet", *args, "--connect", self.endpoint),
+            self.lan.hosts["sim"].command(*command),
             env=self.env,
             capture_output=True,
             text=True,
@@ -230,6 +272,22 @@ def fleet(request, lan, tmp_path, ros_domain):
     (tmp_path / "lan.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     running = Fleet(lan, tmp_path)
     running.transport = request.param
+    running.start()
+    try:
+        yield running
+    finally:
+        running.stop_and_expect_nothing_left()
+
+
+@pytest.fixture
+def tls_fleet(lan, tmp_path, ros_domain):
+    """The LAN's fleet with mutual TLS between its computers, on the `zenoh` transport (the one
+    whose ROS data goes through the router, under the same TLS)."""
+    spec = dict(SPEC, ros={"domain_id": ros_domain, "use_sim_time": True, "transport": "zenoh"})
+    (tmp_path / "lan.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    running = Fleet(lan, tmp_path)
+    running.transport = "zenoh"
+    running.use_tls()
     running.start()
     try:
         yield running
@@ -328,8 +386,11 @@ def test_fleet_across_three_computers(fleet, tmp_path):
     logs = fleet.fleet("logs", "a1", "safety", "--tail", "50", timeout=60)
     assert logs.returncode == 0 and "blocked: obstacle" in logs.stdout, logs.stdout + logs.stderr
     # a1's nodes share one process (isolation: robot): the safety node's own lines only
+    # (and its process's start, under the process's name: it hosts them all)
     loggers = {logger for line in logs.stdout.splitlines() if (logger := logger_of(line)) is not None}
-    assert loggers and all(belongs_to(logger, "a1.safety") for logger in loggers), logs.stdout
+    nodes = {logger for logger in loggers if not is_launch_logger(logger)}
+    assert nodes and all(belongs_to(logger, "a1.safety") for logger in nodes), logs.stdout
+    assert loggers - nodes <= {"composite-1"}, logs.stdout
 
     # Parameters and logs of a robot on another computer.
     done = fleet.fleet("param", "set", "b2", "controller", "max_speed", "0.7", timeout=90)
@@ -394,6 +455,40 @@ def test_fleet_across_three_computers(fleet, tmp_path):
             60,
             "rack_b's robots running again once its cable is back",
         )
+
+
+def test_a_fleet_across_computers_over_mutual_tls(tls_fleet, tmp_path):
+    """docs/multi-computer.md's TLS steps: certificates for the router's address, each agent with
+    its own files only, the CLI with an operator's; robots on both racks drive in the world on
+    `sim`, and a parameter reaches a robot on another computer."""
+    fleet = tls_fleet
+    poll(
+        lambda: {row["name"] for row in fleet.status()["agents"] if row["online"]},
+        until=lambda online: online >= {"sim_host", "rack_a", "rack_b"},
+        timeout=60,
+        interval=0.5,
+        retry_on=(AssertionError,),  # the router is not listening yet
+        what="the three agents online over TLS",
+    )
+    deploy = fleet.fleet("deploy", str(tmp_path / "lan.yaml"), "--timeout", "150")
+    assert deploy.returncode == 0 and "fleet up" in deploy.stdout, deploy.stdout + deploy.stderr + fleet.log_tails()
+    before = poses(fleet.robots())
+    fleet.wait(
+        lambda robots: all(moved(before, poses(robots), name) for name in ("a2", "b2")),
+        30,
+        "the patrolling robots on both racks to move",
+    )
+    done = fleet.fleet("param", "set", "b2", "controller", "max_speed", "0.7", timeout=90)
+    assert done.returncode == 0, done.stdout + done.stderr
+    # Without the operator's configuration the router's TLS endpoint takes no session.
+    plain = subprocess.run(
+        fleet.lan.hosts["sim"].command(sys.executable, "-m", "fleet", "status", "--connect", fleet.endpoint),
+        env=fleet.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert plain.returncode == 1 and "cannot reach the fleet router" in plain.stderr, plain.stdout + plain.stderr
 
 
 def test_deploy_before_the_agents_are_up(router_only, tmp_path):
