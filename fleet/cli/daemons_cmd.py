@@ -104,4 +104,5 @@ def up(
         endpoint, config_file(zenoh_config), agents=agents, announce=lambda message: typer.echo(message, err=True)
     )
     running = ", ".join(local_daemon.running_agents(pid))
+    endpoint = local_daemon.running_endpoint(pid) or endpoint
     typer.echo(f"fleet daemon running (pid {pid}) on {endpoint} with agents {running}; state in {rules.state_dir()}")

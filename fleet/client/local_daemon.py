@@ -49,6 +49,11 @@ def running_agents(pid: int) -> list[str]:
     return daemon_agents(_options(pid, "--agent"))
 
 
+def running_endpoint(pid: int) -> str | None:
+    """Where the daemon `pid` listens, from its command line."""
+    return next(iter(_options(pid, "--listen")), None)
+
+
 def agents_reached(endpoint: str) -> list[str]:
     """The agents of this computer's local daemon when `endpoint` is its router (none otherwise):
     they have the environment the daemon was started with, not the CLI's."""
@@ -80,7 +85,7 @@ def start(
         # Its router and agents are one process: another agent takes a new daemon.  It listens
         # where this one did, with the same Zenoh config (TLS stays TLS).  Its fleets stay: the
         # router keeps them on disk, and the agents start their robots again.
-        listen = (_options(pid, "--listen") or [listen])[0]
+        listen = running_endpoint(pid) or listen
         configs = _options(pid, "--zenoh-config")
         zenoh_config = Path(configs[0]) if configs else None
         names = daemon_agents([*runs, *missing])
