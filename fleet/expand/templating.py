@@ -14,6 +14,7 @@ MAX_RENDER_SECONDS (on the main thread, where the CLI renders: the timer is a si
 
 from __future__ import annotations
 
+import difflib
 import functools
 import glob
 import importlib.resources
@@ -234,7 +235,18 @@ class TemplateSet:
 
     def not_found(self, name: str, where: Location) -> TemplateError:
         searched = ", ".join(str(d) for d in self.directories) or "no directories"
-        return TemplateError(f"template {name!r} not found (looked for {name}{TEMPLATE_SUFFIX} in {searched})", where)
+        known = sorted(
+            {
+                path.name.removesuffix(TEMPLATE_SUFFIX)
+                for d in self.directories
+                for path in d.glob(f"*{TEMPLATE_SUFFIX}")
+            }
+        )
+        guess = difflib.get_close_matches(name, known, n=1)
+        hint = f"; did you mean {guess[0]!r}?" if guess else (f"; templates there: {', '.join(known)}" if known else "")
+        return TemplateError(
+            f"template {name!r} not found (looked for {name}{TEMPLATE_SUFFIX} in {searched}){hint}", where
+        )
 
     def identity_only(self, name: str) -> bool:
         """True when template `name` uses the robot only to print `{{ robot.name }}`,

@@ -83,6 +83,10 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
         ),
         ("fleet: demo\nrobots:\n  - name: robot1\n    template: nosuch\n", ["template 'nosuch' not found"]),
         (
+            "fleet: demo\nrobots:\n  - name: robot1\n    template: diff_drv\n",
+            [":4:5:", "template 'diff_drv' not found", "; did you mean 'diff_drive'?"],
+        ),
+        (
             "fleet: demo\nrobots:\n  - name: robot1\n    parameters: {controller: {w: [[1, 2], [3, 4]]}}\n",
             [":4:", "nested lists"],
         ),
