@@ -98,7 +98,10 @@ class ProcessOutput:
             if not self._closed:
                 self.log.emit(logging.makeLogRecord({"msg": line}))
         if echo and self.echo is not None:
-            self.echo(line)
+            try:
+                self.echo(line)
+            except OSError:  # the screen went away (`fleet run ... | head`): the log goes on
+                self.echo = None
 
     def tail(self, count: int) -> list[str]:
         with self._lock:

@@ -522,7 +522,10 @@ class LaunchSession:
         line = launch_line(process.spec.name, severity, message)
         process.output.add(line, echo=False)
         if self.on_line is not None:
-            self.on_line(SESSION, line)
+            # Said on the session thread, which must not end (every node would go with it): a
+            # screen gone away (`fleet run ... | head`) loses the line, the log keeps it.
+            with contextlib.suppress(OSError):
+                self.on_line(SESSION, line)
 
     def _check(self, process: _Supervised, now: float) -> bool:
         """Notice an exit and decide on a respawn (called with the lock held).  Returns True

@@ -129,6 +129,26 @@ def test_signal_stops_everything(prefix, write_launch, tmp_path, signum):
         runner.communicate()
 
 
+def test_a_screen_that_goes_away_leaves_the_nodes_and_their_logs_running(prefix, write_launch, tmp_path):
+    """`fleet run ... | head -1`: once the reader has gone, what the nodes print still goes to
+    their logs, and nothing breaks (no traceback, the session stops cleanly)."""
+    prefix.add("counter", '#!/bin/sh\ni=0\nwhile true; do i=$((i+1)); echo "count $i"; sleep 0.1; done\n')
+    path = write_launch("launch:\n- node: {pkg: demo, exec: counter, output: screen}\n")
+    runner = fleet_run(prefix, path, "--log-dir", tmp_path / "logs")
+    assert runner.stdout is not None and runner.stderr is not None
+    try:
+        assert "process started" in runner.stdout.readline()
+        runner.stdout.close()  # as `head -1` does
+        log = tmp_path / "logs" / "counter-1.log"
+        poll(lambda: "count 30" in log.read_text(), timeout=20, interval=0.1, what="the node's log to go on")
+        runner.send_signal(signal.SIGINT)
+        assert runner.wait(timeout=20) == 0
+        assert "Traceback" not in runner.stderr.read()
+    finally:
+        runner.kill()
+        runner.wait()
+
+
 def test_show_args_and_print_like_ros2_launch(prefix, write_launch, tmp_path):
     path = write_launch("""
         launch:
