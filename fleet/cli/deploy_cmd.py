@@ -85,7 +85,12 @@ def deploy(
     connect: str | None = ConnectOption,
     zenoh_config: Path | None = ZenohConfigOption,
     json: bool = typer.Option(False, "--json", help="Print the outcome as JSON."),
-    dry_run: bool = typer.Option(False, "--dry-run", help="Only show what would be deployed; send nothing."),
+    dry_run: bool = typer.Option(
+        False,
+        "--dry-run",
+        help="Only show what would be deployed (as `fleet render`); connect to nothing. "
+        "`fleet diff` shows what it would change.",
+    ),
 ) -> None:
     """Send each agent its robots' launch descriptions, wait until they run, show the status."""
     from fleet.cli.output import console, print_json, print_warnings
@@ -98,7 +103,11 @@ def deploy(
     if dry_run:
         from fleet.cli.plan_view import plan_data, print_plan
 
-        print_json(plan_data(expansion)) if json else print_plan(expansion, console())
+        if json:
+            print_json(plan_data(expansion))
+        else:
+            print_plan(expansion, console())
+            console().print("dry run: nothing sent (`fleet diff SPEC` shows what a deploy would change)")
         return
     print_warnings(expansion.warnings)
     agents = {bundle.agent for bundle in expansion.bundles}

@@ -375,6 +375,13 @@ def test_deploy_dry_run_sends_nothing(tmp_path, capsys, monkeypatch):
     data = json.loads(capsys.readouterr().out)
     assert data["robots"][0]["parameters"]["controller"]["max_speed"] == {"value": 0.7, "from": "--set"}
     assert not (tmp_path / "state").exists()
+    # As a table it says that it sent nothing, and where to see what a deploy would change.
+    assert run_fleet(["deploy", str(FLEETS / "two_robots.yaml"), "--dry-run"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Effective parameters" in out and out.endswith(
+        "dry run: nothing sent (`fleet diff SPEC` shows what a deploy would change)"
+    ), out
+    assert not (tmp_path / "state").exists()
 
 
 def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained_as_not_given(tmp_path, capsys):
