@@ -38,11 +38,11 @@ BACKENDS = ("auto", "embedded", "ros2")
 MIN_BACKOFF = 0.25  # base of the exponential backoff when respawn_delay is 0
 MAX_BACKOFF = 30.0
 POLL_INTERVAL = 0.05  # while stopping: a process group has no fd to wait on, so it is polled
+SESSION = ""  # on_line's process name for the session's own lines (they name what they are about)
 
 # Process states, as status() reports them.
 STARTING = "starting"  # not spawned yet
 RUNNING = "running"
-SESSION = ""  # on_line's process name for the session's own lines (they name what they are about)
 BACKOFF = "backoff"  # exited, respawn pending
 EXITED = "exited"  # exited with 0, no respawn
 FAILED = "failed"  # exited non-zero (or by a signal), no respawn
