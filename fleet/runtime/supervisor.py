@@ -133,9 +133,15 @@ class _Supervised:
 
     def printed(self, count: int) -> list[str]:
         """The last `count` lines its processes printed: its log without the session's own lines
-        on when each started and how it ended."""
-        lines = [line for line in self.output.tail(TAIL_LINES) if not is_launch_logger(logger_of(line) or "")]
-        return lines[-count:] if count > 0 else []
+        on when each started and how it ended.  Read from the end, as far as needed: status asks
+        for the last line of every ended process each time it reports."""
+        found: list[str] = []
+        for line in reversed(self.output.tail(TAIL_LINES) if count > 0 else []):
+            if not is_launch_logger(logger_of(line) or ""):
+                found.append(line)
+                if len(found) == count:
+                    break
+        return found[::-1]
 
     def finished(self) -> bool:
         """True when its process and every other member of its group are gone."""
