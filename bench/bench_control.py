@@ -296,6 +296,11 @@ def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 1
                 seconds, done = timed(fleet(cluster, "status", "--json"), env)
                 assert done.returncode == 0, done.stdout + done.stderr
                 cli.append(seconds)
+            table = []  # the same, as the table a user reads (laid out by fleet.cli.table)
+            for _ in range(runs):
+                seconds, done = timed(fleet(cluster, "status"), env)
+                assert done.returncode == 0 and len(done.stdout.splitlines()) > n_robots, done.stdout + done.stderr
+                table.append(seconds)
             with cluster.client() as client:
                 query = []
                 for _ in range(runs * 4):
@@ -310,6 +315,7 @@ def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 1
                 noop.append(seconds)
             results["status"] = {
                 "cli": cli,
+                "table": table,
                 "query": query,
                 "noop_100": noop,
                 "idle_cpu": idle_cpu,
@@ -443,6 +449,7 @@ def report(results: dict, runs: int) -> str:
         shape = f"{status['robots']} robots on {status['agents']} agents"
         lines += [
             f"| `fleet status --json`, {shape} (CLI start-up included) | {med(status['cli'])} | {spread(status['cli'])} | < 0.3 s |",
+            f"| `fleet status` (the table), {shape} (CLI start-up included) | {med(status['table'])} | {spread(status['table'])} | |",
             f"| the status query alone (one wildcard get, {status['agents']} agents + registry replying) | {med(status['query'])} | {spread(status['query'])} | |",
             f"| no-op redeploy of the {status['robots']}-robot fleet (CLI start-up included) | {med(status['noop_100'])} | {spread(status['noop_100'])} | < 0.2 s at 1,000 robots |",
         ]

@@ -71,13 +71,7 @@ def labelled(label: str, style: str, text: str = ""):
 
 
 def table(*columns: str, title: str | None = None):
-    """A kubectl-like table: upper-case headers, no borders, so it fits 80 columns."""
-    from rich import box
-    from rich.table import Table
+    """A kubectl-like table: upper-case headers over a rule, no borders (fleet.cli.table)."""
+    from fleet.cli.table import Table
 
-    result = Table(
-        title=title, title_justify="left", title_style="bold", box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False
-    )
-    for column in columns:
-        result.add_column(column.upper(), overflow="fold")
-    return result
+    return Table(columns, title)
