@@ -100,6 +100,7 @@ def deploy(
     from fleet.errors import EXIT_USAGE
 
     expansion = load_and_expand(spec, set_)  # a bad spec raises here, before anything is sent
+    print_warnings(expansion.warnings)
     if dry_run:
         from fleet.cli.plan_view import plan_data, print_plan
 
@@ -109,7 +110,6 @@ def deploy(
             print_plan(expansion, console())
             console().print("dry run: nothing sent (`fleet diff SPEC` shows what a deploy would change)")
         return
-    print_warnings(expansion.warnings)
     agents = {bundle.agent for bundle in expansion.bundles}
     announce = partial(typer.echo, err=True)
     with connect_or_start(connect, zenoh_config, agents, announce, note_waiting) as control:

@@ -94,8 +94,6 @@ def print_plan(expansion: Expansion, console) -> None:
                 style = "" if entry["from"] == "template" else "bold"
                 parameters.add_row(robot["name"], node, name, value_text(entry["value"]), entry["from"], style=style)
     console.print(parameters)
-    for warning in data["warnings"]:
-        console.print(labelled("warning:", "yellow", warning))
 
 
 def explain_data(expansion: Expansion, key: str) -> dict[str, Any]:

@@ -61,6 +61,7 @@ def render(
         print_json(data) if json else print_explain(data, console())
         return
     if output is None:
+        print_warnings(expansion.warnings)  # on stderr, as deploy's: the report stays what it is
         with paused_gc():
             print_json(plan_data(expansion)) if json else print_plan(expansion, console())
         return

@@ -16,20 +16,23 @@ LIST_OF_WORDS = "[front, back]"  # a string list parameter as the tables format 
 COLONS = "base:robot:link"  # ":robot:" is rich's emoji code for a robot face
 
 
-def run_cli(args: list[str], capsys) -> tuple[int, str]:
+def run_cli(args: list[str], capsys) -> tuple[int, str, str]:
+    """Exit code, stdout and stderr of a fleet command."""
     with pytest.raises(SystemExit) as exited:
         main(args)
-    return int(exited.value.code or 0), capsys.readouterr().out
+    captured = capsys.readouterr()
+    return int(exited.value.code or 0), captured.out, captured.err
 
 
 def test_render_shows_parameter_values_and_warnings_verbatim(capsys):
     sets = ["--set", f"robot1.controller.frame_names={LIST_OF_WORDS}", "--set", f"robot1.controller.frame_id={COLONS}"]
-    code, out = run_cli(["render", str(TWO_ROBOTS), *sets], capsys)
+    code, out, err = run_cli(["render", str(TWO_ROBOTS), *sets], capsys)
     assert code == 0
     rows = {line.split()[2]: line for line in out.splitlines() if line.startswith("robot1 ")}
     assert LIST_OF_WORDS in rows["frame_names"]
     assert COLONS in rows["frame_id"]
-    warnings = [line for line in out.splitlines() if line.startswith("warning:")]
+    assert "warning:" not in out  # the report is on stdout, its warnings on stderr (as deploy's)
+    warnings = [line for line in err.splitlines() if line.startswith("warning:")]
     assert any(f"frame_names={LIST_OF_WORDS}:" in line for line in warnings), warnings
     assert any(f"frame_id={COLONS}:" in line for line in warnings), warnings
     assert "\N{ROBOT FACE}" not in out
@@ -37,7 +40,7 @@ def test_render_shows_parameter_values_and_warnings_verbatim(capsys):
 
 def test_explain_shows_the_value_verbatim(capsys):
     sets = ["--set", f"robot1.controller.frame_names={LIST_OF_WORDS}"]
-    code, out = run_cli(["render", str(TWO_ROBOTS), *sets, "--explain", "robot1.controller.frame_names"], capsys)
+    code, out, _ = run_cli(["render", str(TWO_ROBOTS), *sets, "--explain", "robot1.controller.frame_names"], capsys)
     assert code == 0
     assert f"robot1.controller.frame_names = {LIST_OF_WORDS}" in out
 
