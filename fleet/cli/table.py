@@ -30,8 +30,11 @@ class Table:
         self.styles: list[str] = []
 
     def add_row(self, *cells: Any, style: str = "") -> None:
-        """A row of cells; `style` (rich's: "bold", "dim") for the whole row, under its cells' own."""
-        self.rows.append(cells)
+        """A row of cells, blank ones added to fill it; `style` (rich's: "bold", "dim") for the
+        whole row, under its cells' own."""
+        if len(cells) > len(self.columns):
+            raise ValueError(f"{len(cells)} cells for {len(self.columns)} columns")
+        self.rows.append(cells + ("",) * (len(self.columns) - len(cells)))
         self.styles.append(style)
 
     def __rich_console__(self, console, options):

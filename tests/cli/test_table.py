@@ -89,6 +89,13 @@ def test_wide_characters_and_control_codes_do_not_shift_the_columns():
     assert lines[4] == "robot      ok"
 
 
+def test_a_short_row_is_filled_with_blank_cells():
+    rows = table("robot", "state", "reason")
+    rows.add_row("robot1", "running")
+    rows.add_row("robot2", "degraded", "no /clock")
+    assert screen(rows, 80)[2:] == ["robot1   running", "robot2   degraded   no /clock"]
+
+
 def test_an_empty_table_shows_its_headers():
     assert screen(table("robot", "state"), 80) == ["ROBOT   STATE", "\u2500" * 13]
 
