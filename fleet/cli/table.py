@@ -13,14 +13,15 @@ class Table:
     """Rows of cells (strings, or rich Text for colour) under upper-case headers and a rule,
     columns three spaces apart, a bold title above, as `kubectl get` prints them.
 
-    Every column is as wide as its widest cell.  When that is wider than the screen, the last
+    Every column is as wide as its widest cell.  When that is wider than the screen, columns are
+    two spaces apart instead (`fleet status` of a small fleet then fits 80 columns), and the last
     column (a reason, a value: free text) is wrapped within what is left of the screen, down to
     MIN_LAST characters; narrower than that, the lines are left long, for the terminal to wrap
     (as kubectl's are).  Laid out here, not with rich's Table: that measures, wraps and pads
     each cell on its own (1.3 s for `fleet status` of 1,000 robots on 100 agents, against
     0.19 s here), and on an 80-column screen it folded every column, `running` included."""
 
-    GAP = "   "
+    GAP, NARROW_GAP = "   ", "  "  # between columns; the narrow one where the wide does not fit
     MIN_LAST = 20
 
     def __init__(self, columns: tuple[str, ...], title: str | None = None) -> None:
@@ -45,17 +46,20 @@ class Table:
             max([cell_len(header), *(cell_len(line[0]) for row in rows for line in row[i])])
             for i, header in enumerate(self.columns)
         ]
-        room = options.max_width - sum(widths[:-1]) - len(self.GAP) * (len(widths) - 1)
+        gap = self.GAP
+        if sum(widths) + len(gap) * (len(widths) - 1) > options.max_width:
+            gap = self.NARROW_GAP
+        room = options.max_width - sum(widths[:-1]) - len(gap) * (len(widths) - 1)
         if widths[-1] > room >= self.MIN_LAST:
             for row in rows:
                 row[-1] = _wrapped(row[-1], room, console)
             widths[-1] = room
-        width = sum(widths) + len(self.GAP) * (len(widths) - 1)
+        width = sum(widths) + len(gap) * (len(widths) - 1)
         if self.title:
             yield Text(self.title, style="bold")
         # One Text for the whole table, its colours as spans: a Text per cell or per line costs
         # rich more than the layout itself.
-        header = self.GAP.join(name.ljust(size) for name, size in zip(self.columns, widths, strict=True)).rstrip()
+        header = gap.join(name.ljust(size) for name, size in zip(self.columns, widths, strict=True)).rstrip()
         lines = [header, "\u2500" * width]
         spans = [Span(0, len(header), "bold")]
         position = len(header) + 1 + width + 1  # where the next line starts in the text
@@ -67,7 +71,7 @@ class Table:
                 for cell, size in zip(row, widths, strict=True):
                     text, text_spans = cell[k] if k < len(cell) else ("", [])
                     cell_spans.extend(span.move(column) for span in text_spans)
-                    padding = " " * (size - cell_len(text)) + self.GAP
+                    padding = " " * (size - cell_len(text)) + gap
                     parts += (text, padding)
                     column += len(text) + len(padding)
                 line = "".join(parts).rstrip()

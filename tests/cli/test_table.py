@@ -50,11 +50,18 @@ def test_colours_fall_on_the_words_they_belong_to():
     assert [ANSI.sub("", line) for line in lines] == screen(robots_table(), 200)
 
 
+def test_a_table_a_little_too_wide_closes_its_columns_up_to_two_spaces():
+    wide = screen(robots_table(), 200)
+    lines = screen(robots_table(), len(wide[4]) - 1)
+    assert lines[4] == f"robot2  rack_b  degraded (live overrides)  {REASON}"
+    assert lines[2] == "\u2500" * len(lines[4])
+
+
 def test_on_a_narrow_screen_only_the_last_column_wraps_within_its_column():
     lines = screen(robots_table(), 72)
     start = lines[1].index("REASON")
-    assert lines[3] == "robot1   rack_a   running"
-    assert lines[4].startswith("robot2   rack_b   degraded (live overrides)   no cmd_vel")
+    assert lines[3] == "robot1  rack_a  running"
+    assert lines[4].startswith("robot2  rack_b  degraded (live overrides)  no cmd_vel")
     continued = lines[5:]
     assert continued and all(line[:start].strip() == "" for line in continued)
     assert " ".join(line.strip() for line in [lines[4][start:], *continued]) == REASON
@@ -63,7 +70,7 @@ def test_on_a_narrow_screen_only_the_last_column_wraps_within_its_column():
 
 def test_a_screen_too_narrow_for_the_last_column_leaves_lines_long_rather_than_cutting_words():
     lines = screen(robots_table(), 40)
-    assert lines[4] == f"robot2   rack_b   degraded (live overrides)   {REASON}"
+    assert lines[4] == f"robot2  rack_b  degraded (live overrides)  {REASON}"
     assert len(lines) == 5
 
 
