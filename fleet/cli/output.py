@@ -52,15 +52,12 @@ def json_text(data: Any, depth: int = 2, indent: str = "") -> str:
 def console(stderr: bool = False):
     from rich.console import Console
 
-    stream = sys.stderr if stderr else sys.stdout
-    # Piped output (scripts, CI logs) has no terminal width: rather than wrap tables at rich's
-    # default 80 columns, let them be as wide as their content, like kubectl does.
-    width = None if stream.isatty() else 200
-    # soft_wrap: long messages (paths) stay on one line instead of being broken mid-word.
+    # soft_wrap: long messages (paths) stay on one line instead of being broken mid-word; tables
+    # fit themselves to a terminal's width (fleet.cli.table), and into a pipe keep a row a line.
     # markup and emoji off: what is printed holds users' values (parameters, paths, reasons), and
     # rich would read `[front, back]` as a style tag and drop it, `base:robot:link` as an emoji
     # code. Styles are given as rich Text's (see `labelled`), never inside strings.
-    return Console(stderr=stderr, highlight=False, soft_wrap=True, width=width, markup=False, emoji=False)
+    return Console(stderr=stderr, highlight=False, soft_wrap=True, markup=False, emoji=False)
 
 
 def labelled(label: str, style: str, text: str = ""):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from rich.cells import cell_len
@@ -13,7 +14,7 @@ class Table:
     """Rows of cells (strings, or rich Text for colour) under upper-case headers and a rule,
     columns three spaces apart, a bold title above, as `kubectl get` prints them.
 
-    Every column is as wide as its widest cell.  When that is wider than the screen, columns are
+    Every column is as wide as its widest cell.  When that is wider than a screen, columns are
     two spaces apart instead (`fleet status` of a small fleet then fits 80 columns), and the last
     column (a reason, a value: free text) is wrapped within what is left of the screen, down to
     MIN_LAST characters; narrower than that, the lines are left long, for the terminal to wrap
@@ -46,10 +47,12 @@ class Table:
             max([cell_len(header), *(cell_len(line[0]) for row in rows for line in row[i])])
             for i, header in enumerate(self.columns)
         ]
+        # Into a pipe or a file a row stays one line, however long, for grep and awk (as kubectl's).
+        screen = options.max_width if console.is_terminal else sys.maxsize
         gap = self.GAP
-        if sum(widths) + len(gap) * (len(widths) - 1) > options.max_width:
+        if sum(widths) + len(gap) * (len(widths) - 1) > screen:
             gap = self.NARROW_GAP
-        room = options.max_width - sum(widths[:-1]) - len(gap) * (len(widths) - 1)
+        room = screen - sum(widths[:-1]) - len(gap) * (len(widths) - 1)
         if widths[-1] > room >= self.MIN_LAST:
             for row in rows:
                 row[-1] = _wrapped(row[-1], room, console)

@@ -16,11 +16,12 @@ ANSI = re.compile(r"\x1b\[[0-9;]*m")
 REASON = "no cmd_vel from it has reached the world for 7 s"
 
 
-def screen(renderable, width: int, colour: bool = False) -> list[str]:
-    """What a console `width` columns wide prints, line by line (as fleet's consoles are set up)."""
+def screen(renderable, width: int, colour: bool = False, terminal: bool = True) -> list[str]:
+    """What a terminal `width` columns wide shows, line by line (as fleet's consoles are set up);
+    terminal=False: what a pipe of a console that width gets."""
     out = io.StringIO()
     console = Console(
-        file=out, width=width, force_terminal=colour, color_system="standard" if colour else None, soft_wrap=True
+        file=out, width=width, force_terminal=terminal, color_system="standard" if colour else None, soft_wrap=True
     )
     console.print(renderable)
     return out.getvalue().splitlines()
@@ -71,6 +72,12 @@ def test_on_a_narrow_screen_only_the_last_column_wraps_within_its_column():
 def test_a_screen_too_narrow_for_the_last_column_leaves_lines_long_rather_than_cutting_words():
     lines = screen(robots_table(), 40)
     assert lines[4] == f"robot2  rack_b  degraded (live overrides)  {REASON}"
+    assert len(lines) == 5
+
+
+def test_into_a_pipe_a_row_stays_one_line_for_grep():
+    lines = screen(robots_table(), 40, terminal=False)
+    assert lines[4] == f"robot2   rack_b   degraded (live overrides)   {REASON}"
     assert len(lines) == 5
 
 
