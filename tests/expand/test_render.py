@@ -382,6 +382,12 @@ def test_deploy_dry_run_sends_nothing(tmp_path, capsys, monkeypatch):
         "dry run: nothing sent (`fleet diff SPEC` shows what a deploy would change)"
     ), out
     assert not (tmp_path / "state").exists()
+    # The spec's warnings go to stderr, as a real deploy's do; the plan on stdout stays the plan.
+    unknown = "robot1.controller.nosuch=1"
+    assert run_fleet(["deploy", str(FLEETS / "two_robots.yaml"), "--dry-run", "--set", unknown]) == 0
+    captured = capsys.readouterr()
+    assert "warning:" not in captured.out
+    assert f"warning: --set {unknown}: controller.nosuch is not a parameter" in captured.err
 
 
 def test_a_node_started_without_the_parameter_file_is_warned_about_and_explained_as_not_given(tmp_path, capsys):
