@@ -79,7 +79,11 @@ def agent(
 
 def up(
     listen: str | None = typer.Option(
-        None, "--listen", "-l", help="Endpoint (default: $FLEET_CONNECT or tcp/127.0.0.1:7447)."
+        None,
+        "--listen",
+        "-l",
+        help="Endpoint (default: $FLEET_CONNECT or tcp/127.0.0.1:7447). A daemon running elsewhere is "
+        "restarted here, its fleets kept.",
     ),
     zenoh_config: Path | None = ZenohConfigOption,
     agents: list[str] = typer.Option(
@@ -94,15 +98,19 @@ def up(
     from fleet import rules
     from fleet.client import local_daemon
     from fleet.errors import FleetError, Location
-    from fleet.wire.session import config_file, default_endpoint
+    from fleet.wire.session import config_file, listen_problem
 
     for name in agents:
         if problem := rules.key_name_problem(name):
             raise FleetError(f"agent name {problem}", Location(f"--agent {name}"))
-    endpoint = listen or default_endpoint()
+    if listen is not None and (problem := listen_problem(listen)):
+        raise FleetError(problem, Location("--listen"))
     pid = local_daemon.start(
-        endpoint, config_file(zenoh_config), agents=agents, announce=lambda message: typer.echo(message, err=True)
+        listen,
+        config_file(zenoh_config) if zenoh_config else None,  # without it: as it runs
+        agents=agents,
+        announce=lambda message: typer.echo(message, err=True),
     )
     running = ", ".join(local_daemon.running_agents(pid))
-    endpoint = local_daemon.running_endpoint(pid) or endpoint
+    endpoint = local_daemon.running_endpoint(pid)
     typer.echo(f"fleet daemon running (pid {pid}) on {endpoint} with agents {running}; state in {rules.state_dir()}")

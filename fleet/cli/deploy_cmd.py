@@ -49,6 +49,8 @@ def down(
     if fleet is None and not all_:
         raise FleetError("say which fleet: fleet down SPEC, --fleet NAME, or --all")
     failed = False
+    if all_ and connect is None and (found := local_daemon.elsewhere(None)):
+        connect = found[1]  # `--all` means the local daemon's fleets too, wherever it listens
     try:
         with client(connect, zenoh_config) as control:
             if all_:

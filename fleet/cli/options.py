@@ -36,8 +36,14 @@ def _checked_fleet_name(name: str | None) -> str | None:
 
 def client(connect: str | None, zenoh_config: Path | None) -> ControlClient:
     from fleet.client import connect as connect_client
+    from fleet.errors import ControlError
 
-    return connect_client(connect, zenoh_config, note_waiting)
+    try:
+        return connect_client(connect, zenoh_config, note_waiting)
+    except ControlError as error:
+        from fleet.client.local_daemon import listening_elsewhere
+
+        raise (listening_elsewhere(connect) or error) from None
 
 
 def note_waiting(line: str) -> None:

@@ -64,42 +64,56 @@ def agents_reached(endpoint: str) -> list[str]:
 
 
 def start(
-    listen: str,
+    listen: str | None,
     zenoh_config: Path | None,
     *,
     announce: Callable[[str], None],
     root: Path | None = None,
     agents: list[str] | tuple[str, ...] = (),
 ) -> int:
-    """Start the daemon detached with `local` and `agents` (or find it running with them all);
-    returns once every one of them answers.  A daemon running without some of `agents` is
-    started again with its agents and those, after telling `announce`."""
+    """Start the daemon detached with `local` and `agents`, listening on `listen` with
+    `zenoh_config` (or find it running so); returns once every one of its agents answers.
+
+    None for `listen` or `zenoh_config`: as the running daemon has it; a new one listens on the
+    default endpoint with $FLEET_ZENOH_CONFIG.  A daemon running without some of `agents`, on
+    another endpoint or with another Zenoh config is started again as asked, after telling
+    `announce`: its router and agents are one process.  Its fleets stay (the router keeps them
+    on disk, and the agents start their robots again)."""
+    from fleet.wire.session import config_file, default_endpoint
+
     root = root or state_dir()
     names = daemon_agents(agents)
     pid = running_pid(root)
     if pid is not None:
         runs = running_agents(pid)
         missing = [name for name in names if name not in runs]
-        if not missing:
-            return pid
-        # Its router and agents are one process: another agent takes a new daemon.  It listens
-        # where this one did, with the same Zenoh config (TLS stays TLS).  Its fleets stay: the
-        # router keeps them on disk, and the agents start their robots again.
-        listen = running_endpoint(pid) or listen
+        listened = running_endpoint(pid)
         configs = _options(pid, "--zenoh-config")
-        zenoh_config = Path(configs[0]) if configs else None
-        names = daemon_agents([*runs, *missing])
+        configured = Path(configs[0]) if configs else None
+        changes = []
+        if missing:
+            names = daemon_agents([*runs, *missing])
+            changes.append(f"with agents {', '.join(names)}")
+        if listen is not None and listen != listened:
+            changes.append(f"on {listen} (it listened on {listened})")
+        if zenoh_config is not None and zenoh_config.resolve() != configured:
+            changes.append(f"with the Zenoh config {zenoh_config.resolve()}")
+        if not changes:
+            return pid
+        listen = listen or listened
+        zenoh_config = zenoh_config or configured
         announce(
-            f"restarting the local daemon (pid {pid}) with agents {', '.join(names)}: "
-            "the robots it runs stop and start again"
+            f"restarting the local daemon (pid {pid}) {' and '.join(changes)}: the robots it runs stop and start again"
         )
         stop(root)
+    listen = listen or default_endpoint()
+    zenoh_config = zenoh_config or config_file(None)
     root.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "fleet.server.daemon", "--listen", listen, "--state-dir", str(root)]
     for name in names[1:]:  # `local` is the daemon's own
         command += ["--agent", name]
-    if zenoh_config is not None:
-        command += ["--zenoh-config", str(zenoh_config)]
+    if zenoh_config is not None:  # absolute: a restart may come from another directory
+        command += ["--zenoh-config", str(zenoh_config.resolve())]
     with open(daemon_log_file(root), "ab") as log_file:
         process = subprocess.Popen(
             command,
@@ -157,6 +171,30 @@ def stop(root: Path | None = None) -> bool:
     return True
 
 
+def elsewhere(endpoint: str | None) -> tuple[int, str] | None:
+    """(pid, endpoint) of the local daemon when a command without --connect (`endpoint` None)
+    would miss it: the default endpoint is a loopback one and it listens on another."""
+    from fleet.wire.session import default_endpoint, on_loopback, reaches
+
+    default = default_endpoint()
+    pid = running_pid(state_dir()) if endpoint is None and on_loopback(default) else None
+    where = running_endpoint(pid) if pid is not None else None
+    return None if pid is None or where is None or reaches(default, where) else (pid, where)
+
+
+def listening_elsewhere(endpoint: str | None) -> ControlError | None:
+    """The error for a command that reached nothing there, when elsewhere() finds the daemon."""
+    from fleet.wire.session import default_endpoint
+
+    if (found := elsewhere(endpoint)) is None:
+        return None
+    pid, where = found
+    return ControlError(
+        f"no fleet router answers at {default_endpoint()}; the local daemon (pid {pid}) listens on {where}: "
+        f"give --connect {where} (or set FLEET_CONNECT)"
+    )
+
+
 def connect_or_start(
     endpoint: str | None,
     zenoh_config: Path | None,
@@ -176,6 +214,8 @@ def connect_or_start(
         default = default_endpoint()
         if endpoint is not None or not on_loopback(default):
             raise
+        if moved := listening_elsewhere(endpoint):
+            raise moved from None
         if LOCAL_AGENT not in agents:
             names = sorted(agents)
             raise ControlError(
@@ -183,6 +223,7 @@ def connect_or_start(
                 f"this computer, `fleet up {' '.join(f'--agent {name}' for name in names)}` first; on others, "
                 "give their router with --connect (docs/multi-computer.md)"
             ) from None
-    announce(f"starting the local fleet daemon on {default} (state in {state_dir()})")
-    start(default, config_file(zenoh_config), announce=announce)
-    return connect(None, zenoh_config, on_wait)
+    if running_pid(state_dir()) is None:
+        announce(f"starting the local fleet daemon on {default} (state in {state_dir()})")
+        start(default, config_file(zenoh_config), announce=announce)
+    return connect(None, zenoh_config, on_wait)  # a daemon there still starting: its error if it fails

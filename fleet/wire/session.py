@@ -80,10 +80,45 @@ def endpoint_problem(endpoint: str) -> str | None:
     return None
 
 
+def listen_problem(endpoint: str) -> str | None:
+    """Why this computer cannot listen on `endpoint` (not an endpoint, or its host is not one of
+    this computer's addresses), or None.  Whether its port is free shows only on listening."""
+    if problem := endpoint_problem(endpoint):
+        return problem
+    import socket
+
+    protocol, host, _ = endpoint_parts(endpoint) or ("", "", "")
+    if protocol not in _IP_PROTOCOLS:
+        return None
+    host = host.strip("[]")
+    try:
+        for family, kind, _, _, address in socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM):
+            with socket.socket(family, kind) as probe:
+                probe.bind(address)
+    except OSError as error:
+        return f"endpoint {endpoint!r}: this computer cannot listen on {host} ({error.strerror or error})"
+    return None
+
+
 def on_loopback(endpoint: str) -> bool:
     """Whether `endpoint` names this computer's loopback (a router only this computer reaches)."""
     parts = endpoint_parts(endpoint)
     return parts is not None and parts[1] in ("127.0.0.1", "localhost", "[::1]")
+
+
+def reaches(connect: str, listen: str) -> bool:
+    """Whether a client connecting to `connect` reaches a router listening on `listen`, both on
+    this computer: the same endpoint, or a loopback one and `listen` on every address."""
+    if connect == listen:
+        return True
+    mine, theirs = endpoint_parts(connect), endpoint_parts(listen)
+    return (
+        mine is not None
+        and theirs is not None
+        and mine[0::2] == theirs[0::2]
+        and on_loopback(connect)
+        and theirs[1] in ("0.0.0.0", "[::]")
+    )
 
 
 def _checked(endpoints: list[str]) -> list[str]:

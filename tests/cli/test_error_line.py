@@ -200,3 +200,18 @@ def test_an_endpoint_that_is_not_an_address(capsys, args, expected):
     """Refused before any connection is tried: one line, exit 2, and nothing deployed."""
     line = one_error_line(capsys, args)
     assert line.startswith("fleet: error: <command line>: ") and expected in line, line
+
+
+@pytest.mark.parametrize(
+    "endpoint, expected",
+    [
+        ("tcp/192.0.2.1:7447", "this computer cannot listen on 192.0.2.1 (Cannot assign requested address)"),
+        ("tcp/127.0.0.1", "has no port from 0 to 65535"),
+    ],
+)
+def test_up_refuses_an_endpoint_this_computer_cannot_listen_on(capsys, monkeypatch, tmp_path, endpoint, expected):
+    """Refused before a running daemon would be stopped to move it there."""
+    monkeypatch.setenv("FLEET_STATE_DIR", str(tmp_path))
+    line = one_error_line(capsys, ["up", "--listen", endpoint])
+    assert line.startswith(f"fleet: error: --listen: endpoint '{endpoint}'") and expected in line, line
+    assert list(tmp_path.iterdir()) == []  # no daemon was started

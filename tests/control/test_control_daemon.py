@@ -8,6 +8,7 @@ import psutil
 import pytest
 
 from fleet.client.local_daemon import running_pid
+from fleet.testing.isolation import free_tcp_port
 from fleet.testing.poll import poll
 from tests.control.control_helpers import wait_processes_gone
 
@@ -126,6 +127,59 @@ def test_up_with_agents_runs_a_spec_for_several_computers_on_this_one(fresh_clus
         assert not any(psutil.pid_exists(p) for p in node_pids)
     finally:
         cluster.cli("down", "--all", env=env)
+
+
+def test_up_listening_elsewhere_moves_the_daemon_and_commands_say_where_it_is(fresh_cluster, tmp_path):
+    """`fleet up --listen` against a daemon running on another endpoint starts it again there
+    (it kept the old one, silently); a command without --connect then says where it listens,
+    and `fleet down --all` stops its fleets there."""
+    cluster = fresh_cluster
+    state = tmp_path / "state"
+    env = dict(cluster.env, FLEET_STATE_DIR=str(state), FLEET_CONNECT=cluster.endpoint)
+    moved = f"tcp/127.0.0.1:{free_tcp_port()}"
+    spec = cluster.spec(agents={"local": {}}, defaults={"template": "tiny", "agent": "local"}, robots=[{"name": "r1"}])
+    try:
+        assert cluster.cli("deploy", str(spec), env=env).returncode == 0
+        pid = running_pid(state)
+        assert pid is not None
+
+        same = cluster.cli("up", "--listen", cluster.endpoint, env=env)
+        assert same.returncode == 0 and same.stderr == "" and running_pid(state) == pid, same.stderr
+
+        up = cluster.cli("up", "--listen", moved, env=env)
+        assert up.returncode == 0, up.stdout + up.stderr
+        assert f"restarting the local daemon (pid {pid}) on {moved} (it listened on {cluster.endpoint})" in up.stderr
+        assert f"on {moved} with agents local" in up.stdout
+        wait_processes_gone([pid], 10)
+        pid = running_pid(state)
+        assert pid is not None
+
+        missed = cluster.cli("status", env=env)
+        assert missed.returncode == 1 and missed.stdout == "", missed.stdout + missed.stderr
+        assert missed.stderr.splitlines() == [
+            f"fleet: error: no fleet router answers at {cluster.endpoint}; the local daemon (pid {pid}) listens "
+            f"on {moved}: give --connect {moved} (or set FLEET_CONNECT)"
+        ]
+        status = poll(
+            lambda: json.loads(cluster.cli("status", "--json", "--connect", moved, env=env).stdout),
+            until=lambda status: [r["state"] for r in status["robots"]] == ["running"],
+            timeout=30,
+            what="the fleet running again on the moved daemon",
+        )
+        node_pids = {node["pid"] for r in status["robots"] for node in r["nodes"]}
+
+        down = cluster.cli("down", "--all", env=env)
+        assert down.returncode == 0, down.stdout + down.stderr
+        assert "fleet tiny: stopped on 1 agent(s)" in down.stdout and "local daemon stopped" in down.stdout
+        wait_processes_gone([pid, *node_pids], 10)
+
+        # Its fleets were stopped, not only its process: a new daemon runs none.
+        assert cluster.cli("up", env=env).returncode == 0
+        robots = json.loads(cluster.cli("status", "--json", env=env).stdout)["robots"]
+        assert robots == []
+    finally:
+        cluster.cli("down", "--all", env=env)
+        cluster.cli("down", "--all", "--connect", moved, env=env)
 
 
 def test_a_package_the_daemon_started_without_is_named_with_how_to_restart_it(fresh_cluster, tmp_path):
