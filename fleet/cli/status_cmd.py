@@ -22,6 +22,9 @@ def register(app: typer.Typer) -> None:
 
 
 def status(
+    robots: list[str] = typer.Argument(
+        None, help="Only these robots (or `world`), and a table of their nodes, as `kubectl get pod NAME`."
+    ),
     fleet: str | None = fleet_option("Only this fleet.", "-f"),
     json: bool = typer.Option(False, "--json", help="Print JSON."),
     watch: bool = typer.Option(
@@ -40,42 +43,56 @@ def status(
     from fleet.client import fleet_status
     from fleet.plan import build_view
 
+    robots = robots or []
+    nodes = bool(robots)  # robots named: their nodes too
     with client(connect, zenoh_config) as control:
         view = build_view(*fleet_status(control, fleet), time.time())  # a fleet unknown here ends it now
+        if robots:
+            from fleet.client.robots import robots_named
+
+            view = robots_named(view, robots, fleet)  # a robot unknown here ends it now
         if watch and json:  # a stream, as `kubectl get -w -o json`: one document per line per refresh
-            _refresh(control, fleet, view, lambda view: print_json_line(view.to_json()))
+            _refresh(control, fleet, robots, view, lambda view: print_json_line(view.to_json()))
             return
         if watch and not console().is_terminal:
             # Piped (`| tee`, a file): rich would hold a live display until the end; each refresh is
             # printed whole and flushed instead, a blank line between, as `kubectl get -w` streams.
-            _refresh(control, fleet, view, lambda view: _print_block(view, console()))
+            _refresh(control, fleet, robots, view, lambda view: _print_block(view, console(), nodes))
             return
         if watch:
             from rich.console import Group
             from rich.live import Live
 
             with Live(console=console(), auto_refresh=False) as live:
-                _refresh(control, fleet, view, lambda view: live.update(Group(*view_tables(view)), refresh=True))
+                _refresh(
+                    control,
+                    fleet,
+                    robots,
+                    view,
+                    lambda view: live.update(Group(*view_tables(view, nodes=nodes)), refresh=True),
+                )
             return
     if json:
         print_json(view.to_json())
     else:
-        print_view(view, console())
+        print_view(view, console(), nodes=nodes)
     if not view.all_running:
         raise typer.Exit(1)
 
 
-def _print_block(view: FleetView, out) -> None:
+def _print_block(view: FleetView, out, nodes: bool) -> None:
     from fleet.cli.status_view import print_view
 
-    print_view(view, out)
+    print_view(view, out, nodes=nodes)
     out.print()
     out.file.flush()
 
 
-def _refresh(control: ControlClient, fleet: str | None, view: FleetView, show: Callable[[FleetView], None]) -> None:
+def _refresh(
+    control: ControlClient, fleet: str | None, robots: list[str], view: FleetView, show: Callable[[FleetView], None]
+) -> None:
     """Show the view, then a new one every second until Ctrl-C; on while the fleet goes down, or
-    the router restarts: it shows that."""
+    the router restarts: it shows that.  `robots`: only those (none: every robot)."""
     from fleet.plan import build_view
 
     try:
@@ -83,6 +100,8 @@ def _refresh(control: ControlClient, fleet: str | None, view: FleetView, show: C
             show(view)
             time.sleep(1.0)
             view = build_view(*control.status(fleet), time.time())
+            if robots:
+                view = view.of_robots(robots)
     except KeyboardInterrupt:
         pass
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import time
 
 
-def print_view(view, out, agents: bool = True) -> None:
-    for table in view_tables(view, agents):
+def print_view(view, out, agents: bool = True, nodes: bool = False) -> None:
+    for table in view_tables(view, agents, nodes):
         out.print(table)
 
 
-def view_tables(view, agents: bool = True):
+def view_tables(view, agents: bool = True, nodes: bool = False):
+    """The tables of `view`; with `nodes`, one of its robots' nodes too (`fleet status ROBOT`)."""
     from rich.text import Text
 
     from fleet.cli.output import table as make_table
@@ -63,6 +64,8 @@ def view_tables(view, agents: bool = True):
         table.add_row(*([row.fleet, *cells] if several_fleets else cells))
     # An empty table reads as a failure to show: say there is nothing, as `kubectl get` does.
     tables.append(table if view.robots else Text("Robots: none deployed (`fleet deploy SPEC` runs a fleet)"))
+    if nodes and view.robots:
+        tables.append(_nodes_table(view.robots, several_fleets))
     for world in view.worlds:
         tables.append(_world_line(world))
     for row in view.robots:
@@ -73,6 +76,31 @@ def view_tables(view, agents: bool = True):
             if topic["problem"]:
                 tables.append(Text(f"{fleet}: {topic['problem']}", style="yellow"))
     return tables
+
+
+def _nodes_table(robots, several_fleets: bool):
+    """One row per node of each robot: its process as its agent's runner sees it."""
+    from rich.text import Text
+
+    from fleet.cli.output import table as make_table
+
+    columns = ["robot", "node", "state", "pid", "restarts", "up", "last exit"]
+    table = make_table(*(["fleet", *columns] if several_fleets else columns), title="Nodes")
+    colours = {"running": "green", "starting": "yellow", "backoff": "yellow"}
+    for robot in robots:
+        for node in robot.nodes:
+            uptime, code = node.get("uptime"), node.get("exit_code")
+            cells = [
+                robot.name,
+                node["name"],
+                Text(node["state"], style=colours.get(node["state"], "red")),
+                str(node.get("pid") or ""),
+                str(node.get("restarts", 0)),
+                _duration(uptime) if uptime is not None and node["state"] == "running" else "",
+                "" if code is None else str(code),
+            ]
+            table.add_row(*([robot.fleet, *cells] if several_fleets else cells))
+    return table
 
 
 def _world_line(world):

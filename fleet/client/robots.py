@@ -33,11 +33,7 @@ def robot_place(view: FleetView, robot: str, fleet: str | None) -> tuple[str, st
     """(fleet, agent) running `robot` in `view`; BadRequest for a robot it does not have."""
     found = view.find_robot(robot, fleet)
     if not found:
-        raise BadRequest(
-            f"no robot named {robot!r} is deployed"
-            + (f" in fleet {fleet}" if fleet else "")
-            + _robots_hint(view, robot, fleet)
-        )
+        raise _not_deployed(view, robot, fleet)
     rows = [row for row in found if row.state not in ("pending", "offline")]
     if not rows:
         states = ", ".join(f"{row.state} in fleet {row.fleet}" for row in found)
@@ -45,6 +41,19 @@ def robot_place(view: FleetView, robot: str, fleet: str | None) -> tuple[str, st
     if len(rows) > 1:
         raise FleetError(f"robot {robot!r} exists in fleets {', '.join(r.fleet for r in rows)}: pick one with --fleet")
     return rows[0].fleet, rows[0].agent
+
+
+def robots_named(view: FleetView, robots: list[str], fleet: str | None) -> FleetView:
+    """`view` cut down to `robots` (`fleet status ROBOT...`); BadRequest for one it does not have."""
+    for robot in robots:
+        if not view.find_robot(robot, fleet):
+            raise _not_deployed(view, robot, fleet)
+    return view.of_robots(robots)
+
+
+def _not_deployed(view: FleetView, robot: str, fleet: str | None) -> BadRequest:
+    where = f" in fleet {fleet}" if fleet else ""
+    return BadRequest(f"no robot named {robot!r} is deployed{where}{_robots_hint(view, robot, fleet)}")
 
 
 def _robots_hint(view: FleetView, robot: str, fleet: str | None) -> str:

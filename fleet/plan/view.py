@@ -105,16 +105,27 @@ class FleetView:
 
     def only(self, fleet: str) -> FleetView:
         """This view cut down to one fleet (every agent kept)."""
+        return self._cut(self.robots_of(fleet), {fleet}, self.agents)
+
+    def of_robots(self, names: list[str]) -> FleetView:
+        """This view cut down to the robots named (in every fleet that has one of them), the
+        agents running them, and what their fleets' worlds, servers and topics report."""
+        robots = [robot for robot in self.robots if robot.name in names]
+        running_them = {robot.agent for robot in robots}
+        return self._cut(robots, {robot.fleet for robot in robots}, [a for a in self.agents if a.name in running_them])
+
+    def _cut(self, robots: list[RobotRow], fleets: set[str], agents: list[AgentRow]) -> FleetView:
+        """These robots and agents, and what the view has of these fleets."""
         return FleetView(
-            agents=self.agents,
-            robots=self.robots_of(fleet),
-            generations={key: g for key, g in self.generations.items() if key[0] == fleet},
-            domain_ids={f: d for f, d in self.domain_ids.items() if f == fleet},
-            worlds=[world for world in self.worlds if world.fleet == fleet],
-            discovery={f: d for f, d in self.discovery.items() if f == fleet},
-            servers_in_use={f: s for f, s in self.servers_in_use.items() if f == fleet},
-            bridges={f: b for f, b in self.bridges.items() if f == fleet},
-            shared_topics={f: t for f, t in self.shared_topics.items() if f == fleet},
+            agents=agents,
+            robots=robots,
+            generations={key: g for key, g in self.generations.items() if key[0] in fleets},
+            domain_ids={f: d for f, d in self.domain_ids.items() if f in fleets},
+            worlds=[world for world in self.worlds if world.fleet in fleets],
+            discovery={f: d for f, d in self.discovery.items() if f in fleets},
+            servers_in_use={f: s for f, s in self.servers_in_use.items() if f in fleets},
+            bridges={f: b for f, b in self.bridges.items() if f in fleets},
+            shared_topics={f: t for f, t in self.shared_topics.items() if f in fleets},
         )
 
     def robots_of(self, fleet: str) -> list[RobotRow]:

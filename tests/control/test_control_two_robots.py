@@ -75,6 +75,32 @@ def test_deploy_status_and_noop_redeploy(two_robots):
     assert pids(cluster.view("two_robots")) == before
 
 
+def test_status_of_one_robot_shows_it_and_its_nodes(two_robots):
+    """`fleet status robot2`, as `kubectl get pod NAME`: that robot, its agent, a row per node."""
+    cluster = deployed(two_robots)
+    shown = cluster.cli("status", "robot2", "--connect", cluster.endpoint)
+    assert shown.returncode == 0, shown.stdout + shown.stderr
+    lines = shown.stdout.splitlines()
+    assert [line.split()[0] for line in lines[lines.index("Agents") + 3 : lines.index("Robots")]] == ["hostB"]
+    assert [line.split()[0] for line in lines[lines.index("Robots") + 3 : lines.index("Nodes")]] == ["robot2"]
+    rows = {line.split()[1]: line.split() for line in lines[lines.index("Nodes") + 3 :] if line.startswith("robot2 ")}
+    nodes = {node["name"]: node for node in robot(cluster.view("two_robots"), "robot2").nodes}
+    assert set(rows) == set(nodes)
+    for name, row in rows.items():
+        assert row[2] == "running" and int(row[3]) == nodes[name]["pid"], row
+    assert "world two_robots on hostA" in shown.stdout  # its fleet's world
+
+    as_json = json.loads(cluster.cli("status", "robot2", "--json", "--connect", cluster.endpoint).stdout)
+    assert [row["name"] for row in as_json["robots"]] == ["robot2"]
+    assert {node["name"] for node in as_json["robots"][0]["nodes"]} == set(nodes)
+
+    unknown = cluster.cli("status", "robot2", "robot9", "--connect", cluster.endpoint)
+    assert unknown.returncode == 2 and unknown.stdout == "", unknown.stdout + unknown.stderr
+    assert unknown.stderr.splitlines() == [
+        "fleet: error: <command line>: no robot named 'robot9' is deployed (robots: robot1, robot2, world)"
+    ]
+
+
 def test_set_on_robot2_restarts_only_robot2_and_reaches_the_node(two_robots):
     cluster = deployed(two_robots)
     before = pids(cluster.view("two_robots"))
