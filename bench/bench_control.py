@@ -7,11 +7,10 @@
    sockets, see ReadyWatcher), against the floor: the very same node command lines (from the
    runner's plan) started directly, in parallel, until the same nodes are up.  Alternated.
 2. no-op redeploy: wall time of `fleet deploy` when nothing changed (CLI start-up included).
-3. status: wall time of `fleet status` against 100 robots on 10 agents (tiny stand-in
-   processes, see tests/control/data), CLI start-up included; and the query alone, in-process.
-   `--agents 100 --robots 1000` for the fleet of issue 14: each robot's one node is then
-   `sleep` (a shell exec: no ROS, no output), so that 1,000 of them fit on this machine beside
-   100 agent processes; the report says so.
+3. status: wall time of `fleet status` against 100 robots on 10 agents, CLI start-up included;
+   and the query alone, in-process.  `--agents 100 --robots 1000` for the fleet of issue 14.
+   Each robot is one plain process, `sleep` (template idle in tests/control/data: no ROS node,
+   no output), so that 1,000 of them fit on this machine beside 100 agent processes.
 
 Everything runs on loopback with its own port, ROS domain and temporary state directories.
 """
@@ -273,19 +272,14 @@ def bench_deploy_many(runs: int, results: dict, n_agents: int, n_robots: int) ->
 # -- 3. status against 100 robots on 10 agents -------------------------------------------------
 
 
-IDLE_NODE = "#!/bin/sh\nexec sleep infinity\n"  # a robot's node at scale: a process that only waits
-
-
 def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 100) -> None:
     with reserve_domain_id() as reservation, tempfile.TemporaryDirectory() as tmp:
         cluster = Cluster(Path(tmp), reservation.domain_id)
-        idle = n_robots > 100
-        if idle:  # the stand-in node (a Python process each) would not fit 1,000 times
-            (cluster.prefix / "lib" / "fleet_test" / "sleeper").write_text(IDLE_NODE)
         try:
             agents = start_agents(cluster, n_agents)
             robots = [{"name": f"robot{i:04d}", "agent": agents[i % n_agents]} for i in range(n_robots)]
-            spec = cluster.spec(agents={a: {} for a in agents}, robots=robots)
+            # A plain process per robot: a ROS node each would not fit 1,000 times.
+            spec = cluster.spec(agents={a: {} for a in agents}, robots=robots, defaults={"template": "idle"})
             outcome = cluster.deploy(spec, timeout=120 + n_robots)
             assert outcome.ok, outcome.replies
             settle()
@@ -321,7 +315,6 @@ def bench_status(runs: int, results: dict, n_agents: int = 10, n_robots: int = 1
                 "idle_cpu": idle_cpu,
                 "agents": n_agents,
                 "robots": n_robots,
-                "idle": idle,
             }
         finally:
             cluster.stop()
@@ -457,8 +450,7 @@ def report(results: dict, runs: int) -> str:
             lines.append(
                 f"| CPU of the router and {status['agents']} agents holding {status['robots']} robots, idle | {100 * status['idle_cpu']:.1f}% of one core | | |"
             )
-        if status["idle"]:
-            lines += ["", "Each robot's one node in the status rows is `sleep` (a shell exec: no ROS, no output)."]
+        lines += ["", "Each robot is one plain process, `sleep` (template idle: no ROS node, no output)."]
     lines += ["", f"Runs per measurement: {runs} (status query alone: {runs * 4}).", ""]
     return "\n".join(lines)
 

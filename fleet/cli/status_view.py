@@ -85,11 +85,15 @@ def _nodes_table(robots, several_fleets: bool):
     from fleet.cli.output import table as make_table
 
     columns = ["robot", "node", "state", "pid", "restarts", "up", "last exit"]
+    # In a fleet without a world, whether its agent sees each ROS node in the ROS graph.
+    graph = any(node.get("in_graph") is not None for robot in robots for node in robot.nodes)
+    if graph:
+        columns.append("in ros graph")
     table = make_table(*(["fleet", *columns] if several_fleets else columns), title="Nodes")
     colours = {"running": "green", "starting": "yellow", "backoff": "yellow"}
     for robot in robots:
         for node in robot.nodes:
-            uptime, code = node.get("uptime"), node.get("exit_code")
+            uptime, code, seen = node.get("uptime"), node.get("exit_code"), node.get("in_graph")
             cells = [
                 robot.name,
                 node["name"],
@@ -99,6 +103,8 @@ def _nodes_table(robots, several_fleets: bool):
                 _duration(uptime) if uptime is not None and node["state"] == "running" else "",
                 "" if code is None else str(code),
             ]
+            if graph:
+                cells.append("" if seen is None else Text("yes", style="green") if seen else Text("no", style="red"))
             table.add_row(*([robot.fleet, *cells] if several_fleets else cells))
     return table
 

@@ -244,8 +244,8 @@ CRASH_LOOP = 2  # restarts of a node, now waiting to be restarted again, after w
 
 def _steady(row: RobotRow) -> bool:
     """No node of it was restarted less than STABLE_AFTER ago (the runner's own `healthy again`):
-    a node that keeps exiting runs for a moment between its exits, and a fleet without a world
-    judges robots by their processes, so that moment alone would pass for `fleet up`."""
+    a node that keeps exiting runs for a moment between its exits, and in a fleet without a world
+    it may join the ROS graph in that moment, which alone would pass for `fleet up`."""
     return all(not node.get("restarts") or (node.get("uptime") or 0.0) >= STABLE_AFTER for node in row.nodes)
 
 

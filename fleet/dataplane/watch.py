@@ -1,16 +1,19 @@
-"""Who publishes the topics a fleet's templates share, as one agent's computer sees it.
+"""What one agent's computer sees of a fleet's ROS graph: who publishes the topics its templates
+share, and which nodes are up.
 
     python -m fleet.dataplane.watch CONFIG.json
 
-CONFIG: {"fleet", "topics": [topic names], "status_file": path}.  One process per fleet and
-agent whose robots share topics: a ROS node that is a discovery super client (it learns every
-endpoint of the graph without subscribing, so it receives no messages), counting each topic's
-publishers every second, leaving out the fleet's Zenoh bridge (it only republishes what came
-from another agent).  It writes {"wall_time", "topics": {name: {"publishers", "silent"}}} to
-the status file, `silent` being the seconds since a publisher was last seen (since the watch
-started, if never; null while there is one).  With the `dds` transport every watch sees the
-whole fleet's graph, with `zenoh` its own computer's: `fleet status` combines the agents'
-(fleet.plan.view.shared_topic_notes).  Exits 0 on SIGTERM/SIGINT, 2 on a bad config.
+CONFIG: {"fleet", "topics": [topic names], "nodes": bool, "status_file": path}.  One process per
+fleet and agent whose robots share topics or, in a fleet without a world, run ROS nodes: a ROS
+node that is a discovery super client (it learns every endpoint of the graph without
+subscribing, so it receives no messages).  Every second it counts each topic's publishers,
+leaving out the fleet's Zenoh bridge (it only republishes what came from another agent), and
+with "nodes" lists every node of the graph by full name.  It writes {"wall_time", "started",
+"topics": {name: {"publishers", "silent"}}, "nodes": [full names] (with "nodes")} to the status
+file, `silent` being the seconds since a publisher was last seen (since the watch started, if
+never; null while there is one), `started` when it first counted (wall time).  With the `dds`
+transport every watch sees the whole fleet's graph, with `zenoh` its own computer's: `fleet
+status` combines the agents' (fleet.plan.view).  Exits 0 on SIGTERM/SIGINT, 2 on a bad config.
 """
 
 from __future__ import annotations
@@ -29,10 +32,16 @@ def count_publishers(node, topic: str, bridge: str) -> int:
     return sum(1 for info in node.get_publishers_info_by_topic(topic) if info.node_name != bridge)
 
 
+def node_names(node) -> set[str]:
+    """Full names (`/robot1/controller`) of every node in the graph as this node sees it."""
+    return {namespace.rstrip("/") + "/" + name for name, namespace in node.get_node_names_and_namespaces()}
+
+
 def main(argv: list[str]) -> int:
     try:
         config = json.loads(Path(argv[0]).read_text())
         fleet, topics = str(config["fleet"]), [str(topic) for topic in config["topics"]]
+        nodes = bool(config.get("nodes", False))
         status_file = Path(config["status_file"])
     except (IndexError, OSError, ValueError, KeyError, TypeError) as error:
         print(f"fleet watch: error: bad config: {' '.join(str(error).split())}", file=sys.stderr)
@@ -47,7 +56,7 @@ def main(argv: list[str]) -> int:
     rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(service_node_name("watch", fleet))
     bridge = service_node_name("bridge", fleet)
-    started = time.monotonic()
+    started, started_wall = time.monotonic(), time.time()
     last_seen: dict[str, float] = {}
     try:
         while True:
@@ -59,7 +68,10 @@ def main(argv: list[str]) -> int:
                     last_seen[topic] = now
                 silent = None if publishers else round(now - last_seen.get(topic, started), 1)
                 report[topic] = {"publishers": publishers, "silent": silent}
-            write_atomic(status_file, json.dumps({"wall_time": time.time(), "topics": report}))
+            status = {"wall_time": time.time(), "started": started_wall, "topics": report}
+            if nodes:
+                status["nodes"] = sorted(node_names(node))
+            write_atomic(status_file, json.dumps(status))
             if stop.wait(PERIOD):
                 break
     finally:

@@ -9,8 +9,9 @@ velocity and battery, and each fleet with a world one WorldRow (sim time, RTF, c
 A robot whose processes all run is `running` only when its data flows (judge_data_flow): in a
 fleet with a world, the world must be advancing (it publishes /clock), must have had a cmd_vel
 from the robot lately (its controller runs on /clock, so that also says /clock reaches it), and
-the robot's odom must have a subscriber.  Otherwise it is `degraded` (or still `starting`, for
-a short while after its nodes started, unless one of them has ended since) with the reason in words.
+the robot's odom must have a subscriber; without a world, its ROS nodes must be in the ROS graph
+(judge_graph).  Otherwise it is `degraded` (or still `starting`, for a short while after its
+nodes started, unless one of them has ended since) with the reason in words.
 """
 
 from __future__ import annotations
@@ -275,10 +276,13 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         if not row.reason and row.error:
             row.reason = row.error
     for fleet in {fleet for fleet, _ in robots}:
+        rows = [row for (f, _), row in robots.items() if f == fleet]
         world_row = robots.get((fleet, "world"))
         if world_row is not None and world_row.kind == "world":
             summary = worlds[fleet][1] if fleet in worlds else None
-            judge_data_flow([row for (f, _), row in robots.items() if f == fleet], world_row, summary)
+            judge_data_flow(rows, world_row, summary)
+        else:
+            judge_graph(rows)
 
     world_rows = [
         WorldRow(
@@ -367,6 +371,37 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSumma
             row.state, row.reason = "starting", f"waiting for data: {problem}"
         else:
             row.state, row.reason = "degraded", problem
+
+
+def judge_graph(rows: list[RobotRow]) -> None:
+    """Without a world, turn `running` rows of one fleet whose ROS nodes are not in the ROS graph
+    (as their agent's watch sees it) into `degraded` (or `starting`, just started).
+
+    A process can run without its node having joined the graph (stuck before or in creating it,
+    as SIGKILLed participants' leftovers once made every new one); only the graph says the node
+    is up.  Plain executables never join it: for a robot of only those, its processes are all
+    there is to judge.  Pure: only the rows' state and reason change."""
+    for row in rows:
+        if row.kind != "robot" or row.state != "running":
+            continue
+        problem = _graph_problem(row)
+        if problem is None:
+            continue
+        if _young(row):
+            row.state, row.reason = "starting", f"waiting for its nodes: {problem}"
+        else:
+            row.state, row.reason = "degraded", problem
+
+
+def _graph_problem(row: RobotRow) -> str | None:
+    ros = [node for node in row.nodes if node.get("ros")]
+    if any(node.get("in_graph") is None for node in ros):
+        return f"agent {row.agent} does not see the ROS graph (its watch of the fleet is starting, or not running)"
+    absent = [node.get("fqn") or node["name"] for node in ros if node.get("in_graph") is False]
+    if not absent:
+        return None
+    more = f" (and {len(absent) - 1} more of its nodes)" if len(absent) > 1 else ""
+    return f"node {absent[0]}{more} not in the ROS graph, though its process runs"
 
 
 def _robot_flow_problem(row: RobotRow, summary: p.WorldSummary) -> str | None:

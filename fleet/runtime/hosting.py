@@ -426,6 +426,7 @@ class HostPool:
                 cmd=list(host.cmd),
                 process=host.name,
                 problem=problem,
+                ros=True,  # hosted nodes are ROS nodes of the host's process
             )
             for node in hosted.nodes
         ]

@@ -63,6 +63,7 @@ class NodeStatus:
     process: str  # `controller-1`, `composite-1`, `ros2-launch-1`: log name and screen prefix
     # While its process does not run after having run: how it ended, in words (see ended_problem).
     problem: str = ""
+    ros: bool = False  # a ROS node (a `node` of the launch file, with a package), not a plain executable
 
 
 def default_log_dir() -> Path:
@@ -244,6 +245,7 @@ class LaunchSession:
                             cmd=list(process.spec.cmd),
                             process=process.spec.name,
                             problem=problem,
+                            ros=node is not None and bool(node.package),
                         )
                     )
         return result

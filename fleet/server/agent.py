@@ -64,6 +64,8 @@ STALLED_FETCHES = 2
 # After this long without an answer from a fleet's discovery host (absent, or its status denied to
 # this agent by the router's access rules), say so; then again every as long.
 UNANSWERED_HOST_WARNING = 30.0
+WATCH_FRESH = 5.0  # s: a watch report older than this says nothing of the graph now (watch stuck?)
+GRAPH_SETTLE = 3.0  # s a new watch learns the graph before an absent node counts as absent
 
 
 class Agent:
@@ -110,6 +112,7 @@ class Agent:
         self._unanswered_hosts: dict[tuple[str, str], tuple[float, float]] = {}
         # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
         self._services: dict[tuple[str, str], Any] = {}
+        self._watching_nodes: set[str] = set()  # fleets whose watch here looks for their nodes
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
         self._hosting: dict[tuple[str, str, int], Any] = {}
         # (fleet, unit) -> `fleet restart`s asked for, and those the reconcile thread has yet to carry out
@@ -524,6 +527,8 @@ class Agent:
         wanted: dict[tuple[str, str], tuple[str, FleetState]] = {}
         with self._lock:
             states = [state for state in self._fleets.values() if state.request.bundles]
+        with self._lock:
+            self._watching_nodes &= {state.request.fleet for state in states}
         for state in states:
             request, server = state.request, self._discovery_server(state)
             if server and request.discovery_host == self.name:
@@ -531,10 +536,29 @@ class Agent:
             if request.transport == "zenoh" and (request.bridge.exports or request.bridge.imports):
                 routes = request.bridge.model_dump_json()
                 wanted[(request.fleet, "bridge")] = (f"{server}|{routes}", state)
-            if request.shared:
+            nodes = self._watches_nodes(request)
+            if request.shared or nodes:
                 topics = ",".join(topic.name for topic in request.shared)
-                wanted[(request.fleet, "watch")] = (f"{server}|{topics}", state)
+                wanted[(request.fleet, "watch")] = (f"{server}|{topics}|{nodes}", state)
         return wanted
+
+    def _watches_nodes(self, request: p.ApplyRequest) -> bool:
+        """Whether the fleet's watch here looks for its robots' nodes in the ROS graph: in a fleet
+        without a world (no data of its robots to judge them by), once a robot of it has run a ROS
+        node here (plain executables never join the graph), for as long as it has robots here (a
+        robot restarting runs no node for a moment: the watch, and the graph it learnt, stay)."""
+        with self._lock:
+            if request.has_world:
+                self._watching_nodes.discard(request.fleet)
+                return False
+            if request.fleet in self._watching_nodes:
+                return True
+            units = [unit for (f, _), unit in self._units.items() if f == request.fleet]
+        if not any(node.ros for unit in units for node in unit.node_states()):
+            return False
+        with self._lock:
+            self._watching_nodes.add(request.fleet)
+        return True
 
     def _discovery_server(self, state: FleetState) -> str | None:
         """The fleet's DDS discovery server ("address:port"), as its deploy said.  A deploy made
@@ -653,21 +677,23 @@ class Agent:
         status_file = directory / f"{fleet}.watch.status.json"
         status_file.unlink(missing_ok=True)  # counts of an earlier watch are not this one's
         topics = [topic.name for topic in state.request.shared]
-        write_atomic(config, json.dumps({"fleet": fleet, "topics": topics, "status_file": str(status_file)}))
+        nodes = key.endswith("|True")  # as _wanted_services decided it (the key it runs under)
+        write_atomic(
+            config, json.dumps({"fleet": fleet, "topics": topics, "nodes": nodes, "status_file": str(status_file)})
+        )
         env = self._unit_env(state.request.domain_id, self._discovery_server(state))
         if "ROS_DISCOVERY_SERVER" in env:
             env["ROS_SUPER_CLIENT"] = "TRUE"  # sees every publisher without subscribing
         command = [sys.executable, "-m", "fleet.dataplane.watch", str(config)]
         return ServiceProcess(key, command, env, directory / f"{fleet}.watch.log")
 
-    def _shared_topics(self, fleet: str) -> list[p.SharedTopicState]:
-        """What this agent's watch last counted (none while it has not counted yet)."""
+    def _watch_report(self, fleet: str) -> dict[str, Any] | None:
+        """What this agent's watch of the fleet last wrote (None while it has written nothing)."""
         try:
             data = json.loads((services_dir(self.store.root) / f"{fleet}.watch.status.json").read_text())
-            age = round(max(0.0, time.time() - float(data["wall_time"])), 1)
-            return [p.SharedTopicState(name=name, age=age, **counts) for name, counts in data["topics"].items()]
-        except (OSError, ValueError, KeyError, TypeError):
-            return []
+            return data if isinstance(data, dict) else None
+        except (OSError, ValueError):
+            return None
 
     def _services_loop(self) -> None:
         """Run the services of every fleet that wants them here; stop those no longer wanted."""
@@ -744,12 +770,18 @@ class Agent:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
         if bridge is not None:
             reply.bridge_pid = bridge.pid
-        if fleet and state.request.shared:
-            reply.shared_topics = self._shared_topics(fleet)
+        watched = state.request.shared or not state.request.has_world
+        watch = self._watch_report(fleet) if fleet and watched else None
+        if state.request.shared:
+            reply.shared_topics = _shared_topics(watch)
+        graph = None if state.request.has_world else _graph_nodes(watch)
         seen = set()
         desired = {bundle.name for bundle in state.request.bundles}
         for name, unit in units:
             robot = unit.state(overrides.get(name, {}))
+            if graph is not None:
+                for node in robot.nodes:
+                    node.in_graph = _seen_in_graph(node, *graph) if node.ros else None
             if robot.state == "stopped" and name in desired:
                 # The reconcile thread stops it to start it again (a new description): what it
                 # will run is accepted and not started yet.
@@ -889,6 +921,40 @@ class Agent:
             unit = self._units.get((request.fleet, request.robot))
         if unit is not None:
             unit.write_files(overrides)
+
+
+def _shared_topics(report: dict[str, Any] | None) -> list[p.SharedTopicState]:
+    """The shared topics' publishers as the watch last counted them (none before it has)."""
+    if report is None:
+        return []
+    try:
+        age = round(max(0.0, time.time() - float(report["wall_time"])), 1)
+        return [p.SharedTopicState(name=name, age=age, **counts) for name, counts in report["topics"].items()]
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return []
+
+
+def _graph_nodes(report: dict[str, Any] | None) -> tuple[float, set[str]] | None:
+    """(when it was written, the nodes in the ROS graph by full name) as the watch last saw it;
+    None unless it reported in the last WATCH_FRESH seconds and has watched for GRAPH_SETTLE (a
+    new watch is still learning the graph: every node would look absent)."""
+    if report is None:
+        return None
+    try:
+        now, written = time.time(), float(report["wall_time"])
+        if now - written > WATCH_FRESH or now - float(report["started"]) < GRAPH_SETTLE:
+            return None
+        return written, {str(name) for name in report["nodes"]}
+    except (ValueError, KeyError, TypeError):
+        return None
+
+
+def _seen_in_graph(node: p.NodeState, written: float, graph: set[str]) -> bool:
+    """Whether the graph has the node as its process runs now: only a report written since that
+    process started counts (an older one may show its previous process's entry, as a restarted
+    node's would be for up to a watch period)."""
+    started = time.time() - (node.uptime or 0.0)
+    return written > started and node.fqn in graph
 
 
 def _payload(query) -> bytes | None:

@@ -267,15 +267,17 @@ class Unit:
 
 
 def _wire(node: NodeStatus) -> NodeState:
-    assert node.name is not None  # fleet's launch files name every node (fleet.expand.outline)
     return NodeState(
-        name=node.name,
+        # fleet's launch files name every node (fleet.expand.outline); a plain executable has no
+        # node name, and its process's (`sleep-1`, as launch names it) stands for it
+        name=node.name or node.process,
         fqn=node.fqn or "",
         state=str(node.state),
         pid=node.pid,
         restarts=node.restarts or 0,
         exit_code=node.exit_code,
         uptime=node.uptime,
+        ros=node.ros,
     )
 
 

@@ -70,3 +70,16 @@ def test_the_nodes_table_has_a_row_per_node(capsys):
 def test_without_robots_named_there_is_no_nodes_table(capsys):
     print_view(two_fleets(), console())
     assert "Nodes" not in capsys.readouterr().out.splitlines()
+
+
+def test_without_a_world_the_nodes_table_says_which_are_in_the_ros_graph(capsys):
+    rows = [
+        RobotRow("f", "r1", "robot", "rack_a", "degraded", nodes=[dict(node("a"), ros=True, in_graph=True)]),
+        RobotRow("f", "r2", "robot", "rack_a", "degraded", nodes=[dict(node("b"), ros=True, in_graph=False)]),
+        RobotRow("f", "r3", "robot", "rack_a", "running", nodes=[dict(node("c"), in_graph=None)]),  # not ROS
+    ]
+    print_view(FleetView(agents=[], robots=rows), console(), agents=False, nodes=True)
+    lines = capsys.readouterr().out.splitlines()
+    table = lines[lines.index("Nodes") + 1 :]
+    assert table[0].split()[-3:] == ["IN", "ROS", "GRAPH"]
+    assert [line.split()[-1] for line in table[2:5]] == ["yes", "no", "min"]  # r3's cell is blank

@@ -92,16 +92,13 @@ def test_robots_hosted_by_their_agent(fresh_cluster):
     assert got.returncode == 0 and json.loads(got.stdout) == 0.9, got.stdout + got.stderr
     other = cluster.cli("param", "get", "robot1", "controller", "max_speed", "--connect", cluster.endpoint)
     assert json.loads(other.stdout) == pytest.approx(0.1)
-    # Each hosted node lists its own parameters, as a node of its own process would; the sleeper
-    # (a plain process, no ROS node) is named as not answering, and the command exits 1.
+    # Each hosted node lists its own parameters, as a node of its own process would, and so does
+    # the sleeper in its process beside the host.
     listed = cluster.cli("param", "list", "robot2", "--json", "--connect", cluster.endpoint)
-    assert listed.returncode == 1, listed.stdout + listed.stderr
-    assert (
-        listed.stderr == "fleet: error: robot2/sleeper: it has no parameter services (not a ROS node, or not running)\n"
-    )
+    assert listed.returncode == 0, listed.stdout + listed.stderr
     parameters = json.loads(listed.stdout)["parameters"]
     assert parameters["controller"]["max_speed"] == 0.9 and parameters["battery"]["capacity"] == 50.0
-    assert "max_speed" not in parameters["battery"] and "sleeper" not in parameters
+    assert "max_speed" not in parameters["battery"] and parameters["sleeper"]["period"] == 1.0
     assert snapshot(cluster.view("hosted")) == before  # nothing restarted
 
     # robot2's controller raises in a callback: robot2's hosted nodes restart (same host), the

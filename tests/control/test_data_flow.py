@@ -124,8 +124,42 @@ def test_a_world_that_never_reports_is_degraded_and_so_are_its_robots():
     assert young["world"][0] == "starting" and young["r1"][0] == "starting"
 
 
-def test_without_a_world_processes_decide():
-    assert rows(status("rack", [unit("r1")])) == {"r1": ("running", "")}
+def test_without_a_world_plain_executables_are_judged_by_their_processes():
+    assert rows(status("rack", [unit("r1")])) == {"r1": ("running", "")}  # not ROS nodes: never in the graph
+
+
+def ros_unit(name: str, *in_graph: bool | None, uptime: float = OLD) -> p.RobotState:
+    """A robot of ROS nodes, each seen in the ROS graph by its agent's watch (True), not (False),
+    or not known (None)."""
+    robot = unit(name, *[uptime] * len(in_graph))
+    for node, seen in zip(robot.nodes, in_graph, strict=True):
+        node.ros, node.fqn, node.in_graph = True, f"/{name}/{node.name}", seen
+    return robot
+
+
+def test_without_a_world_a_robot_runs_when_its_ros_nodes_are_in_the_graph():
+    assert rows(status("rack", [ros_unit("r1", True, True)])) == {"r1": ("running", "")}
+
+
+def test_without_a_world_a_node_whose_process_runs_outside_the_graph_makes_its_robot_degraded():
+    got = rows(status("rack", [ros_unit("r1", True, False), ros_unit("r2", False, False)]))
+    assert got == {
+        "r1": ("degraded", "node /r1/n1 not in the ROS graph, though its process runs"),
+        "r2": ("degraded", "node /r2/n0 (and 1 more of its nodes) not in the ROS graph, though its process runs"),
+    }
+
+
+def test_without_a_world_a_robot_just_started_outside_the_graph_is_starting():
+    got = rows(status("rack", [ros_unit("r1", True, False, uptime=2.0)]))
+    reason = "waiting for its nodes: node /r1/n1 not in the ROS graph, though its process runs"
+    assert got == {"r1": ("starting", reason)}
+
+
+def test_without_a_world_a_graph_its_agent_does_not_see_is_not_taken_for_running():
+    got = rows(status("rack", [ros_unit("r1", True, None)]))
+    assert got == {
+        "r1": ("degraded", "agent rack does not see the ROS graph (its watch of the fleet is starting, or not running)")
+    }
 
 
 def test_robots_of_an_agent_that_does_not_answer_say_so():

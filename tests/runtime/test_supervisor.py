@@ -89,10 +89,19 @@ def test_status_fields(prefix, write_launch, tmp_path):
         assert (status.name, status.fqn, status.state, status.restarts) == ("s", "/n/s", "running", 0)
         assert status.pid and pid_alive(status.pid) and status.exit_code is None
         assert status.uptime > 0 and status.cmd[0].endswith("lib/demo/sleeper")
-        assert status.process == "sleeper-1"
+        assert status.process == "sleeper-1" and status.ros  # a node of a package: a ROS node
         pid = status.pid
     (status,) = session.status()
     assert status.state == "stopped" and status.pid is None and not pid_alive(pid)
+
+
+def test_a_plain_executable_is_no_ros_node(prefix, write_launch, tmp_path):
+    prefix.add("sleeper", SLEEPER)
+    session = session_for(prefix, write_launch, tmp_path, f"- executable: {{cmd: {prefix.root}/lib/demo/sleeper}}\n")
+    with session:
+        time.sleep(0.2)
+        (status,) = session.status()
+        assert (status.name, status.fqn, status.process, status.ros) == (None, None, "sleeper-1", False)
 
 
 def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):

@@ -1,0 +1,80 @@
+"""A fleet without a world has no data for fleet to watch: its robots run when their ROS nodes are
+in the ROS graph, as their agent's watch (a discovery super client) sees it, not when their
+processes merely run.  Real processes, real DDS: the stand-in sleeper is an rclpy node."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from fleet.testing.poll import poll
+from tests.control.control_helpers import DATA
+
+pytestmark = pytest.mark.integration
+
+# A `node` whose process runs and never joins the ROS graph, as one stuck before or in creating
+# its node (SIGKILLed participants' leftovers once made every new one hang there).
+STUCK = "#!/bin/sh\nexec sleep 1000\n"
+
+
+def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_path):
+    cluster = fresh_cluster
+    stuck = cluster.prefix / "lib" / "fleet_test" / "stuck"
+    stuck.write_text(STUCK)
+    stuck.chmod(0o755)
+    templates = tmp_path / "templates"
+    shutil.copytree(DATA / "templates", templates)
+    tiny = (templates / "tiny.launch.yaml.j2").read_text()
+    (templates / "outsider.launch.yaml.j2").write_text(tiny + "  - node: {pkg: fleet_test, exec: stuck, name: stuck}\n")
+    shutil.copy(templates / "tiny.params.yaml", templates / "outsider.params.yaml")
+    robots = [
+        {"name": "r1"},  # a ROS node: in the graph
+        {"name": "r2", "template": "outsider"},  # the same, and one outside the graph
+        {"name": "r3", "template": "idle"},  # a plain executable: never in the graph, judged by its process
+    ]
+    spec = cluster.spec(robots=robots, templates=str(templates), agents={"hostA": {}})
+    cluster.start_router()
+    cluster.start_agent("hostA")
+    cluster.wait_agents_online("hostA")
+
+    done = cluster.cli("deploy", str(spec), "--timeout", "35", "--connect", cluster.endpoint, timeout=90)
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "fleet up" not in done.stdout
+    reason = "node /r2/stuck not in the ROS graph, though its process runs"
+    assert f"not running: r2 degraded ({reason})" in done.stdout, done.stdout
+
+    status = json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout)
+    robots_seen = {row["name"]: row for row in status["robots"]}
+    assert {name: (row["state"], row["reason"]) for name, row in robots_seen.items()} == {
+        "r1": ("running", ""),
+        "r2": ("degraded", reason),
+        "r3": ("running", ""),
+    }
+    graph = {name: {n["name"]: (n["ros"], n["in_graph"]) for n in row["nodes"]} for name, row in robots_seen.items()}
+    assert graph == {
+        "r1": {"sleeper": (True, True)},
+        "r2": {"sleeper": (True, True), "stuck": (True, False)},
+        "r3": {"idle-1": (False, None)},
+    }
+    assert all(n["state"] == "running" for row in robots_seen.values() for n in row["nodes"])  # every process runs
+
+    shown = cluster.cli("status", "r2", "--connect", cluster.endpoint)
+    assert shown.returncode == 1, shown.stdout + shown.stderr
+    rows = {line.split()[1]: line.split()[-1] for line in shown.stdout.splitlines() if line.startswith("r2 ")}
+    assert rows["sleeper"] == "yes" and rows["stuck"] == "no", shown.stdout
+
+    # The stuck node gone from its launch file, the robot runs: its one node is in the graph.
+    fixed = cluster.spec(
+        robots=[{"name": "r1"}, {"name": "r2"}, {"name": "r3", "template": "idle"}],
+        templates=str(templates),
+        agents={"hostA": {}},
+    )
+    again = cluster.cli("deploy", str(fixed), "--timeout", "60", "--connect", cluster.endpoint, timeout=90)
+    assert again.returncode == 0 and "fleet up" in again.stdout, again.stdout + again.stderr
+    poll(
+        lambda: json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout)["all_running"],
+        timeout=5,
+        what="every robot running",
+    )
