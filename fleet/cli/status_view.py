@@ -64,7 +64,7 @@ def view_tables(view, agents: bool = True, nodes: bool = False):
         table.add_row(*([row.fleet, *cells] if several_fleets else cells))
     # An empty table reads as a failure to show: say there is nothing, as `kubectl get` does.
     tables.append(table if view.robots else Text("Robots: none deployed (`fleet deploy SPEC` runs a fleet)"))
-    if nodes and view.robots:
+    if nodes and any(row.nodes for row in view.robots):  # offline or pending robots report none
         tables.append(_nodes_table(view.robots, several_fleets))
     for world in view.worlds:
         tables.append(_world_line(world))

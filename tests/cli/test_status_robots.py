@@ -83,3 +83,10 @@ def test_without_a_world_the_nodes_table_says_which_are_in_the_ros_graph(capsys)
     table = lines[lines.index("Nodes") + 1 :]
     assert table[0].split()[-3:] == ["IN", "ROS", "GRAPH"]
     assert [line.split()[-1] for line in table[2:5]] == ["yes", "no", "min"]  # r3's cell is blank
+
+
+def test_robots_that_report_no_nodes_get_no_empty_nodes_table(capsys):
+    offline = RobotRow("f", "r1", "robot", "rack_a", "offline", reason="agent rack_a does not answer")
+    print_view(FleetView(agents=[], robots=[offline]), console(), agents=False, nodes=True)
+    out = capsys.readouterr().out
+    assert "agent rack_a does not answer" in out and "Nodes" not in out.splitlines()
