@@ -85,7 +85,7 @@ def _nodes_table(robots, several_fleets: bool):
     from fleet.cli.output import table as make_table
 
     columns = ["robot", "node", "state", "pid", "restarts", "up", "last exit"]
-    # In a fleet without a world, whether its agent sees each ROS node in the ROS graph.
+    # Whether its agent sees each ROS node in the ROS graph (once the agent's watch reports).
     graph = any(node.get("in_graph") is not None for robot in robots for node in robot.nodes)
     if graph:
         columns.append("in ros graph")

@@ -4,9 +4,9 @@ share, and which nodes are up.
     python -m fleet.dataplane.watch CONFIG.json
 
 CONFIG: {"fleet", "topics": [topic names], "nodes": bool, "status_file": path}.  One process per
-fleet and agent whose robots share topics or, in a fleet without a world, run ROS nodes: a ROS
-node that is a discovery super client (it learns every endpoint of the graph without
-subscribing, so it receives no messages).  Every second it counts each topic's publishers,
+fleet and agent whose robots share topics or run ROS nodes: a ROS node that is a discovery super
+client (it learns every endpoint of the graph without subscribing, so it receives no messages).
+Every second it counts each topic's publishers,
 leaving out the fleet's Zenoh bridge (it only republishes what came from another agent), and
 with "nodes" lists every node of the graph by full name.  It writes {"wall_time", "started",
 "topics": {name: {"publishers", "silent"}}, "nodes": [full names] (with "nodes")} to the status

@@ -6,12 +6,13 @@ record and show as `offline`.  Robots in the plan whose (online) agent does not 
 are `pending`.  The world's summary (from the agent running it) gives robot rows their pose,
 velocity and battery, and each fleet with a world one WorldRow (sim time, RTF, contacts, errors).
 
-A robot whose processes all run is `running` only when its data flows (judge_data_flow): in a
-fleet with a world, the world must be advancing (it publishes /clock), must have had a cmd_vel
-from the robot lately (its controller runs on /clock, so that also says /clock reaches it), and
-the robot's odom must have a subscriber; without a world, its ROS nodes must be in the ROS graph
-(judge_graph).  Otherwise it is `degraded` (or still `starting`, for a short while after its
-nodes started, unless one of them has ended since) with the reason in words.
+A robot whose processes all run is `running` only when its nodes are up and its data flows: in
+a fleet with a world (judge_data_flow), the world must be advancing (it publishes /clock), must
+have had a cmd_vel from the robot lately (its controller runs on /clock, so that also says /clock
+reaches it), and the robot's odom must have a subscriber; in every fleet, its ROS nodes must be in
+the ROS graph (judge_graph: a battery or safety node stuck before joining it shows in no data the
+world sees).  Otherwise it is `degraded` (or still `starting`, for a short while after its nodes
+started, unless one of them has ended since) with the reason in words.
 """
 
 from __future__ import annotations
@@ -281,8 +282,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         if world_row is not None and world_row.kind == "world":
             summary = worlds[fleet][1] if fleet in worlds else None
             judge_data_flow(rows, world_row, summary)
-        else:
-            judge_graph(rows)
+        judge_graph(rows)
 
     world_rows = [
         WorldRow(
@@ -374,8 +374,9 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSumma
 
 
 def judge_graph(rows: list[RobotRow]) -> None:
-    """Without a world, turn `running` rows of one fleet whose ROS nodes are not in the ROS graph
-    (as their agent's watch sees it) into `degraded` (or `starting`, just started).
+    """Turn `running` rows of one fleet whose ROS nodes are not in the ROS graph (as their agent's
+    watch sees it) into `degraded` (or `starting`, just started).  In a fleet with a world it
+    comes after judge_data_flow: a robot whose data does not flow keeps that reason.
 
     A process can run without its node having joined the graph (stuck before or in creating it,
     as SIGKILLed participants' leftovers once made every new one); only the graph says the node

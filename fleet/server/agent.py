@@ -543,14 +543,11 @@ class Agent:
         return wanted
 
     def _watches_nodes(self, request: p.ApplyRequest) -> bool:
-        """Whether the fleet's watch here looks for its robots' nodes in the ROS graph: in a fleet
-        without a world (no data of its robots to judge them by), once a robot of it has run a ROS
-        node here (plain executables never join the graph), for as long as it has robots here (a
-        robot restarting runs no node for a moment: the watch, and the graph it learnt, stay)."""
+        """Whether the fleet's watch here looks for its robots' nodes in the ROS graph: once a robot
+        of it has run a ROS node here (plain executables never join the graph), for as long as it
+        has robots here (a robot restarting runs no node for a moment: the watch, and the graph it
+        learnt, stay)."""
         with self._lock:
-            if request.has_world:
-                self._watching_nodes.discard(request.fleet)
-                return False
             if request.fleet in self._watching_nodes:
                 return True
             units = [unit for (f, _), unit in self._units.items() if f == request.fleet]
@@ -770,11 +767,10 @@ class Agent:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
         if bridge is not None:
             reply.bridge_pid = bridge.pid
-        watched = state.request.shared or not state.request.has_world
-        watch = self._watch_report(fleet) if fleet and watched else None
+        watch = self._watch_report(fleet) if fleet else None
         if state.request.shared:
             reply.shared_topics = _shared_topics(watch)
-        graph = None if state.request.has_world else _graph_nodes(watch)
+        graph = _graph_nodes(watch)
         seen = set()
         desired = {bundle.name for bundle in state.request.bundles}
         for name, unit in units:

@@ -334,9 +334,6 @@ class ApplyRequest(Message):
     bridge: BridgeRoutes = BridgeRoutes()
     # Topics this agent's robots share (templates' share(...)): the agent watches their publishers.
     shared: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
-    # Whether the fleet has a world (it judges whether robots' data flows).  Without one, the
-    # agent watches the ROS graph for its robots' nodes (NodeState.in_graph).
-    has_world: bool = True
     # Only ask whether the agent could run it (ApplyReply.problems), changing nothing: a deploy
     # asks every agent first, so that one robot's bad launch file leaves the whole fleet as it was.
     check_only: bool = False
@@ -414,8 +411,8 @@ class NodeState(BaseModel):
     exit_code: int | None = None
     uptime: float | None = None
     ros: bool = False  # a ROS node (launch's `node`), not a plain executable: it joins the ROS graph
-    # Whether this agent's watch of the fleet's ROS graph sees it there (fleets without a world
-    # only; None: not a ROS node, or not watched, or the watch is not reporting).
+    # Whether this agent's watch of the fleet's ROS graph sees it there (None: not a ROS node, or
+    # the watch is not reporting yet).
     in_graph: bool | None = None
 
 

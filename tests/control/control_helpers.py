@@ -1,6 +1,6 @@
 """Helpers for the control-plane tests. A real control plane on loopback: a router and agents as
-separate processes, own ports, own ROS domain, own state directories; and a tiny node stand-in so
-most tests run no rclpy."""
+separate processes, own ports, own ROS domain, own state directories; and a tiny rclpy node as
+the stand-in for a robot's nodes."""
 
 from __future__ import annotations
 

@@ -162,6 +162,20 @@ def test_without_a_world_a_graph_its_agent_does_not_see_is_not_taken_for_running
     }
 
 
+def test_with_a_world_a_robot_whose_data_flows_is_degraded_while_a_node_of_it_is_outside_the_graph():
+    # Its controller's commands reach the world; its safety node is stuck before joining the graph.
+    got = rows(status("sim", [unit("world")], world(r1=FLOWING)), status("rack", [ros_unit("r1", True, False)]))
+    assert got["r1"] == ("degraded", "node /r1/n1 not in the ROS graph, though its process runs")
+    whole = rows(status("sim", [unit("world")], world(r1=FLOWING)), status("rack", [ros_unit("r1", True, True)]))
+    assert whole["r1"] == ("running", "")
+
+
+def test_with_a_world_data_that_does_not_flow_is_the_reason_before_the_graph():
+    cut = {"cmd_age": NO_COMMANDS + 7, "odom_subscribers": 2}
+    got = rows(status("sim", [unit("world")], world(r1=cut)), status("rack", [ros_unit("r1", True, False)]))
+    assert got["r1"] == ("degraded", f"no cmd_vel from it has reached the world for {NO_COMMANDS + 7:.0f} s")
+
+
 def test_robots_of_an_agent_that_does_not_answer_say_so():
     registry = p.RegistryReply(
         fleet="f",

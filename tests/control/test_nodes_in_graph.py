@@ -1,6 +1,7 @@
-"""A fleet without a world has no data for fleet to watch: its robots run when their ROS nodes are
-in the ROS graph, as their agent's watch (a discovery super client) sees it, not when their
-processes merely run.  Real processes, real DDS: the stand-in sleeper is an rclpy node."""
+"""A robot runs when its ROS nodes are in the ROS graph, as its agent's watch (a discovery super
+client) sees it, not when their processes merely run: in a fleet without a world (no data for
+fleet to watch) and in one with a world (whose data shows only the nodes it talks to).  Real
+processes, real DDS: the stand-in sleeper is an rclpy node, the world is PyBullet's."""
 
 from __future__ import annotations
 
@@ -8,8 +9,10 @@ import json
 import shutil
 
 import pytest
+import yaml
 
 from fleet.testing.poll import poll
+from tests.checkout import REPO
 from tests.control.control_helpers import DATA
 
 pytestmark = pytest.mark.integration
@@ -17,17 +20,22 @@ pytestmark = pytest.mark.integration
 # A `node` whose process runs and never joins the ROS graph, as one stuck before or in creating
 # its node (SIGKILLed participants' leftovers once made every new one hang there).
 STUCK = "#!/bin/sh\nexec sleep 1000\n"
+STUCK_NODE = "  - node: {pkg: fleet_test, exec: stuck, name: stuck}\n"
+
+
+def install_stuck(cluster) -> None:
+    stuck = cluster.prefix / "lib" / "fleet_test" / "stuck"
+    stuck.write_text(STUCK)
+    stuck.chmod(0o755)
 
 
 def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_path):
     cluster = fresh_cluster
-    stuck = cluster.prefix / "lib" / "fleet_test" / "stuck"
-    stuck.write_text(STUCK)
-    stuck.chmod(0o755)
+    install_stuck(cluster)
     templates = tmp_path / "templates"
     shutil.copytree(DATA / "templates", templates)
     tiny = (templates / "tiny.launch.yaml.j2").read_text()
-    (templates / "outsider.launch.yaml.j2").write_text(tiny + "  - node: {pkg: fleet_test, exec: stuck, name: stuck}\n")
+    (templates / "outsider.launch.yaml.j2").write_text(tiny + STUCK_NODE)
     shutil.copy(templates / "tiny.params.yaml", templates / "outsider.params.yaml")
     robots = [
         {"name": "r1"},  # a ROS node: in the graph
@@ -78,3 +86,38 @@ def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_pat
         timeout=5,
         what="every robot running",
     )
+
+
+def test_in_a_world_a_robot_whose_data_flows_runs_only_with_all_its_nodes_in_the_graph(host_a, tmp_path):
+    cluster = host_a
+    install_stuck(cluster)
+    templates = tmp_path / "templates"
+    shutil.copytree(REPO / "templates", templates)
+    drive = (templates / "diff_drive.launch.yaml.j2").read_text()
+    (templates / "stuck_drive.launch.yaml.j2").write_text(drive + STUCK_NODE)
+    shutil.copy(templates / "diff_drive.params.yaml", templates / "stuck_drive.params.yaml")
+    spec = cluster.two_robots_on_host_a("process")
+    data = yaml.safe_load(spec.read_text())
+    data["templates"] = str(templates)
+    data["robots"][1]["template"] = "stuck_drive"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    try:
+        done = cluster.cli("deploy", str(spec), "--timeout", "35", "--connect", cluster.endpoint, timeout=90)
+        assert done.returncode == 1, done.stdout + done.stderr
+        reason = "node /robot2/stuck not in the ROS graph, though its process runs"
+        assert f"not running: robot2 degraded ({reason})" in done.stdout, done.stdout
+
+        status = json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout)
+        robots = {row["name"]: row for row in status["robots"]}
+        assert {name: (row["state"], row["reason"]) for name, row in robots.items()} == {
+            "world": ("running", ""),
+            "robot1": ("running", ""),
+            "robot2": ("degraded", reason),
+        }
+        # Its data flows all the same: the world hears its controller, which gets the world's odom.
+        moved = robots["robot2"]["velocity"]
+        assert moved is not None and abs(moved["linear"]) > 0.01, robots["robot2"]
+        seen = {n["name"]: n["in_graph"] for n in robots["robot2"]["nodes"]}
+        assert seen == {"controller": True, "battery": True, "safety": True, "stuck": False}
+    finally:
+        cluster.cli("down", "two_robots", "--connect", cluster.endpoint, timeout=60)
