@@ -45,6 +45,7 @@ def requests_for(
             discovery_server=discovery.server if discovery else None,
             discovery_host=discovery.host if discovery else None,
             shared=[p.TopicRoute(**topic.route_fields) for topic in expansion.shared_topics(agent)],
+            has_world=expansion.spec.world is not None,
         )
         for agent, bundles in sorted(by_agent.items())
     ]

@@ -171,6 +171,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
     generations: dict[tuple[str, str], int] = {}
     domain_ids: dict[str, int] = {}
     worlds: dict[str, tuple[str, p.WorldSummary]] = {}  # fleet -> (agent, summary)
+    with_world: set[str] = set()  # fleets that have a world, as their agents say
     discovery: dict[str, list[dict[str, Any]]] = {}
     servers_in_use: dict[str, dict[str, str]] = {}
     bridges: dict[str, dict[str, int | None]] = {}
@@ -207,6 +208,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
             domain_ids[status.fleet] = status.domain_id
         if status.world is not None:
             worlds[status.fleet] = (info.name, status.world)
+        if status.has_world:
+            with_world.add(status.fleet)
         if status.discovery_server:
             discovery.setdefault(status.fleet, []).append(
                 {"agent": info.name, "server": status.discovery_server, "pid": status.discovery_pid}
@@ -282,6 +285,8 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
         if world_row is not None and world_row.kind == "world":
             summary = worlds[fleet][1] if fleet in worlds else None
             judge_data_flow(rows, world_row, summary)
+        elif fleet in with_world:  # its agent away, and the router without the plan that names it
+            judge_data_flow(rows, None, None)
         judge_graph(rows)
 
     world_rows = [
@@ -340,13 +345,16 @@ NO_COMMANDS = 5.0  # s without a cmd_vel from a robot at the world: its data doe
 STARTUP_GRACE = 20.0  # s after a robot's nodes started in which missing data means `starting`
 
 
-def judge_data_flow(rows: list[RobotRow], world: RobotRow, summary: p.WorldSummary | None) -> None:
+def judge_data_flow(rows: list[RobotRow], world: RobotRow | None, summary: p.WorldSummary | None) -> None:
     """Turn `running` rows of one fleet into `degraded` (or `starting`) where data does not flow.
 
-    `world` is the fleet's world row, `summary` what its agent last reported of it (None: no
-    report).  Pure: only the rows' state and reason change."""
+    `world` is the fleet's world row (None: nothing says where the world runs), `summary` what
+    its agent last reported of it (None: no report).  Pure: only the rows' state and reason
+    change."""
     world_problem = None
-    if world.state != "running":
+    if world is None:
+        world_problem = "no agent that answers runs the world, and the router has no record of where it runs"
+    elif world.state != "running":
         world_problem = f"the world is {world.state}" + (f" ({world.reason})" if world.reason else "")
     elif summary is None:
         world_problem = "the world has not reported yet"

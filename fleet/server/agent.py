@@ -762,6 +762,7 @@ class Agent:
         reply.reconciled_generation = reconciled
         reply.content_digest = state.content_digest
         reply.domain_id = state.request.domain_id
+        reply.has_world = state.request.has_world
         reply.discovery_in_use = self._discovery_server(state) or ""
         if discovery is not None:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid

@@ -334,6 +334,7 @@ class ApplyRequest(Message):
     bridge: BridgeRoutes = BridgeRoutes()
     # Topics this agent's robots share (templates' share(...)): the agent watches their publishers.
     shared: list[TopicRoute] = Field([], max_length=MAX_ROUTES)
+    has_world: bool = False  # whether the fleet has a world (StatusReply.has_world says it again)
     # Only ask whether the agent could run it (ApplyReply.problems), changing nothing: a deploy
     # asks every agent first, so that one robot's bad launch file leaves the whole fleet as it was.
     check_only: bool = False
@@ -601,6 +602,9 @@ class StatusReply(Message):
     shared_topics: list[SharedTopicState] = []  # the shared topics this agent watches (fleet.dataplane.watch)
     robots: list[RobotState] = []
     world: WorldSummary | None = None  # when this agent runs the fleet's world and it has reported
+    # Whether the fleet has a world (wherever it runs): its robots are judged by their data then,
+    # even when no agent answering and no plan record says where the world is.
+    has_world: bool = False
     # ApplyRequest.content_digest of the desired state held: a deploy that would send the same
     # to every agent has nothing to send ("" when the agent holds none for this fleet).
     content_digest: str = ""

@@ -14,9 +14,11 @@ from fleet.wire import protocol as p
 OLD = STARTUP_GRACE + 60  # node uptime long past start-up
 
 
-def status(agent: str, robots: list[p.RobotState], world: p.WorldSummary | None = None) -> p.StatusReply:
+def status(
+    agent: str, robots: list[p.RobotState], world: p.WorldSummary | None = None, has_world: bool = False
+) -> p.StatusReply:
     info = p.AgentInfo(name=agent, hostname=agent, cores=2, pid=1, version="0", started_at=0.0, address="10.0.0.1")
-    return p.StatusReply(agent=info, fleet="f", time=0.0, generation=1, robots=robots, world=world)
+    return p.StatusReply(agent=info, fleet="f", time=0.0, generation=1, robots=robots, world=world, has_world=has_world)
 
 
 def unit(name: str, *uptimes: float, state: p.RobotStateName = "running") -> p.RobotState:
@@ -174,6 +176,15 @@ def test_with_a_world_data_that_does_not_flow_is_the_reason_before_the_graph():
     cut = {"cmd_age": NO_COMMANDS + 7, "odom_subscribers": 2}
     got = rows(status("sim", [unit("world")], world(r1=cut)), status("rack", [ros_unit("r1", True, False)]))
     assert got["r1"] == ("degraded", f"no cmd_vel from it has reached the world for {NO_COMMANDS + 7:.0f} s")
+
+
+def test_with_a_world_nowhere_to_be_found_robots_in_the_graph_are_not_running():
+    # The world's agent away, and a router without the plan record (a new state directory): no
+    # world row.  The robots' agent still says the fleet has a world, so their data is judged.
+    got = rows(status("rack", [ros_unit("r1", True, True)], has_world=True))
+    assert got == {
+        "r1": ("degraded", "no agent that answers runs the world, and the router has no record of where it runs")
+    }
 
 
 def test_robots_of_an_agent_that_does_not_answer_say_so():

@@ -67,6 +67,9 @@ def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_pat
         "r3": {"idle-1": (False, None)},
     }
     assert all(n["state"] == "running" for row in robots_seen.values() for n in row["nodes"])  # every process runs
+    with cluster.client() as client:
+        statuses, _ = client.status()
+    assert {(s.agent.name, s.has_world) for s in statuses} == {("hostA", False)}
 
     shown = cluster.cli("status", "r2", "--connect", cluster.endpoint)
     assert shown.returncode == 1, shown.stdout + shown.stderr
@@ -119,5 +122,8 @@ def test_in_a_world_a_robot_whose_data_flows_runs_only_with_all_its_nodes_in_the
         assert moved is not None and abs(moved["linear"]) > 0.01, robots["robot2"]
         seen = {n["name"]: n["in_graph"] for n in robots["robot2"]["nodes"]}
         assert seen == {"controller": True, "battery": True, "safety": True, "stuck": False}
+        with cluster.client() as client:  # the agent says the fleet has a world, wherever it runs
+            statuses, _ = client.status("two_robots")
+        assert [(s.agent.name, s.has_world) for s in statuses] == [("hostA", True)]
     finally:
         cluster.cli("down", "two_robots", "--connect", cluster.endpoint, timeout=60)
