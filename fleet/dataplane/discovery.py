@@ -47,20 +47,50 @@ def discovery_server(server: str, env: dict[str, str], log_file: Path) -> Servic
     return ServiceProcess(server, server_command(server), server_environment(env), log_file)
 
 
+WILDCARDS = {"0.0.0.0", "::"}  # a listen endpoint on every interface of this computer
+ANYWHERE = "203.0.113.1"  # TEST-NET-3: a route probe towards it takes the default route
+
+
 def address_towards(endpoints: list[str]) -> str:
     """This computer's IPv4 address on the route to the first reachable Zenoh endpoint (what the
     other computers of the fleet see it as); 127.0.0.1 when the router is on this computer.
 
+    An agent in the process of a router listening on every interface (`fleet up --listen
+    tcp/0.0.0.0:7447`, so that agents of other computers join it) is given that wildcard: it
+    reports the address of this computer's default route, or else its first address that is not
+    loopback; 127.0.0.1 would send the other computers' nodes to their own loopback.
     A UDP socket's connect only picks the route: nothing is sent."""
-    import socket
-
     for endpoint in endpoints:
         _, _, locator = endpoint.partition("/")
         host = locator.rsplit(":", 1)[0].strip("[]")
-        try:
-            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-                probe.connect((host, 9))
-                return probe.getsockname()[0]
-        except OSError:
-            continue
+        if host in WILDCARDS:
+            return _route_address(ANYWHERE) or _interface_address() or "127.0.0.1"
+        if address := _route_address(host):
+            return address
     return "127.0.0.1"
+
+
+def _route_address(host: str) -> str | None:
+    import socket
+
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            probe.connect((host, 9))
+            return str(probe.getsockname()[0])
+    except OSError:
+        return None
+
+
+def _interface_address() -> str | None:
+    """The first IPv4 address, not loopback, of an interface that is up (a computer whose network
+    has no default route, as on an isolated LAN)."""
+    import socket
+
+    import psutil
+
+    up = {name for name, stats in psutil.net_if_stats().items() if stats.isup}
+    for name, addresses in psutil.net_if_addrs().items():
+        for address in addresses:
+            if name in up and address.family == socket.AF_INET and not address.address.startswith("127."):
+                return str(address.address)
+    return None
