@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 import yaml
@@ -23,23 +24,25 @@ STUCK = "#!/bin/sh\nexec sleep 1000\n"
 STUCK_NODE = "  - node: {pkg: fleet_test, exec: stuck, name: stuck}\n"
 
 
-def install_stuck(cluster) -> None:
+def templates_with_stuck(cluster, source: Path, template: str, copy: Path) -> Path:
+    """`source`'s templates copied to `copy`, with template `stuck_<template>`: `template` and
+    one node more that never joins the graph (its executable installed in the cluster's prefix)."""
     stuck = cluster.prefix / "lib" / "fleet_test" / "stuck"
     stuck.write_text(STUCK)
     stuck.chmod(0o755)
+    shutil.copytree(source, copy)
+    launch = (copy / f"{template}.launch.yaml.j2").read_text()
+    (copy / f"stuck_{template}.launch.yaml.j2").write_text(launch + STUCK_NODE)
+    shutil.copy(copy / f"{template}.params.yaml", copy / f"stuck_{template}.params.yaml")
+    return copy
 
 
 def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_path):
     cluster = fresh_cluster
-    install_stuck(cluster)
-    templates = tmp_path / "templates"
-    shutil.copytree(DATA / "templates", templates)
-    tiny = (templates / "tiny.launch.yaml.j2").read_text()
-    (templates / "outsider.launch.yaml.j2").write_text(tiny + STUCK_NODE)
-    shutil.copy(templates / "tiny.params.yaml", templates / "outsider.params.yaml")
+    templates = templates_with_stuck(cluster, DATA / "templates", "tiny", tmp_path / "templates")
     robots = [
         {"name": "r1"},  # a ROS node: in the graph
-        {"name": "r2", "template": "outsider"},  # the same, and one outside the graph
+        {"name": "r2", "template": "stuck_tiny"},  # the same, and one outside the graph
         {"name": "r3", "template": "idle"},  # a plain executable: never in the graph, judged by its process
     ]
     spec = cluster.spec(robots=robots, templates=str(templates), agents={"hostA": {}})
@@ -93,16 +96,11 @@ def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_pat
 
 def test_in_a_world_a_robot_whose_data_flows_runs_only_with_all_its_nodes_in_the_graph(host_a, tmp_path):
     cluster = host_a
-    install_stuck(cluster)
-    templates = tmp_path / "templates"
-    shutil.copytree(REPO / "templates", templates)
-    drive = (templates / "diff_drive.launch.yaml.j2").read_text()
-    (templates / "stuck_drive.launch.yaml.j2").write_text(drive + STUCK_NODE)
-    shutil.copy(templates / "diff_drive.params.yaml", templates / "stuck_drive.params.yaml")
+    templates = templates_with_stuck(cluster, REPO / "templates", "diff_drive", tmp_path / "templates")
     spec = cluster.two_robots_on_host_a("process")
     data = yaml.safe_load(spec.read_text())
     data["templates"] = str(templates)
-    data["robots"][1]["template"] = "stuck_drive"
+    data["robots"][1]["template"] = "stuck_diff_drive"
     spec.write_text(yaml.safe_dump(data, sort_keys=False))
     try:
         done = cluster.cli("deploy", str(spec), "--timeout", "35", "--connect", cluster.endpoint, timeout=90)
