@@ -149,6 +149,8 @@ class Agent:
                 self._serve()
         finally:
             self.stop_event.set()
+            stopping = time.monotonic()
+            log.info("agent %s stopping", self.name)
             session, self._session = self._session, None
             if session is not None:
                 with self._lock:
@@ -159,6 +161,7 @@ class Agent:
             self._work.put(None)
             worker.join()
             services.join()
+            log.info("agent %s stopped its robots and services in %.1f s", self.name, time.monotonic() - stopping)
 
     def _serve(self) -> None:
         """Until stopped: fetch desired states every DESIRED_POLL seconds, and replace the session

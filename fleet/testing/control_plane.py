@@ -43,6 +43,7 @@ class ControlPlane:
         self.port = free_tcp_port()
         self.scheme = "tcp"  # "tls" for a router whose Zenoh config listens with TLS
         self.processes: dict[str, subprocess.Popen] = {}  # "router" or "agent-<name>" -> process
+        self.forced: list[str] = []  # what stop_process had to SIGKILL, in words (a leak's likely cause)
 
     @property
     def endpoint(self) -> str:
@@ -135,6 +136,7 @@ class ControlPlane:
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
+            self.forced.append(f"{key} (pid {process.pid}) did not exit within {timeout:g} s of SIGTERM: SIGKILLed")
 
     def stop(self) -> None:
         """Agents first (each stops its robots, all at once), then the router."""

@@ -145,7 +145,7 @@ class FleetHandle:
         if described and check_leaks:
             raise FleetLeak(
                 f"fleet {self.name}: {len(described)} process(es) outlived the clean stop and were killed:\n"
-                + "\n".join(described)
+                + "\n".join([*described, *self.control.forced])
             )
 
     def robots(self) -> list[str]:
