@@ -33,6 +33,7 @@ import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -774,14 +775,14 @@ class Agent:
         watch = self._watch_report(fleet) if fleet else None
         if state.request.shared:
             reply.shared_topics = _shared_topics(watch)
-        graph = _graph_nodes(watch)
+        graph = _graph_report(watch)
         seen = set()
         desired = {bundle.name for bundle in state.request.bundles}
         for name, unit in units:
             robot = unit.state(overrides.get(name, {}))
             if graph is not None:
                 for node in robot.nodes:
-                    node.in_graph = _seen_in_graph(node, *graph) if node.ros else None
+                    node.in_graph = _seen_in_graph(node, graph) if node.ros else None
             if robot.state == "stopped" and name in desired:
                 # The reconcile thread stops it to start it again (a new description): what it
                 # will run is accepted and not started yet.
@@ -934,27 +935,39 @@ def _shared_topics(report: dict[str, Any] | None) -> list[p.SharedTopicState]:
         return []
 
 
-def _graph_nodes(report: dict[str, Any] | None) -> tuple[float, set[str]] | None:
-    """(when it was written, the nodes in the ROS graph by full name) as the watch last saw it;
-    None unless it reported in the last WATCH_FRESH seconds and has watched for GRAPH_SETTLE (a
-    new watch is still learning the graph: every node would look absent)."""
+@dataclass(frozen=True)
+class GraphReport:
+    """The ROS graph as a fleet's watch last reported it."""
+
+    written: float  # when (time.time())
+    settled: bool  # it had watched for GRAPH_SETTLE: a node it does not name is absent
+    nodes: frozenset[str]  # full names
+
+
+def _graph_report(report: dict[str, Any] | None) -> GraphReport | None:
+    """What the watch last wrote of the graph; None unless it wrote in the last WATCH_FRESH
+    seconds (a watch stuck or stopped says nothing of the graph now)."""
     if report is None:
         return None
     try:
         now, written = time.time(), float(report["wall_time"])
-        if now - written > WATCH_FRESH or now - float(report["started"]) < GRAPH_SETTLE:
+        if now - written > WATCH_FRESH:
             return None
-        return written, {str(name) for name in report["nodes"]}
+        settled = now - float(report["started"]) >= GRAPH_SETTLE
+        return GraphReport(written, settled, frozenset(str(name) for name in report["nodes"]))
     except (ValueError, KeyError, TypeError):
         return None
 
 
-def _seen_in_graph(node: p.NodeState, written: float, graph: set[str]) -> bool:
+def _seen_in_graph(node: p.NodeState, graph: GraphReport) -> bool | None:
     """Whether the graph has the node as its process runs now: only a report written since that
     process started counts (an older one may show its previous process's entry, as a restarted
-    node's would be for up to a watch period)."""
+    node's would be for up to a watch period).  A watch still learning the graph names the nodes
+    it has found; of one it has not, it says nothing (None) until it has settled."""
     started = time.time() - (node.uptime or 0.0)
-    return written > started and node.fqn in graph
+    if graph.written > started and node.fqn in graph.nodes:
+        return True
+    return False if graph.settled else None
 
 
 def _payload(query) -> bytes | None:
