@@ -5,15 +5,15 @@ share, and which nodes are up.
 
 CONFIG: {"fleet", "topics": [topic names], "nodes": bool, "status_file": path}.  One process per
 fleet and agent whose robots share topics or run ROS nodes: a ROS node that is a discovery super
-client (it learns every endpoint of the graph without subscribing, so it receives no messages).
-Every second it counts each topic's publishers,
-leaving out the fleet's Zenoh bridge (it only republishes what came from another agent), and
-with "nodes" lists every node of the graph by full name.  It writes {"wall_time", "started",
-"topics": {name: {"publishers", "silent"}}, "nodes": [full names] (with "nodes")} to the status
-file, `silent` being the seconds since a publisher was last seen (since the watch started, if
-never; null while there is one), `started` when it first counted (wall time).  With the `dds`
-transport every watch sees the whole fleet's graph, with `zenoh` its own computer's: `fleet
-status` combines the agents' (fleet.plan.view).  Exits 0 on SIGTERM/SIGINT, 2 on a bad config.
+client (it learns every endpoint of the graph without subscribing, so it receives no
+messages).  Every second it counts each topic's publishers, leaving out the fleet's Zenoh bridge (it
+only republishes what came from another agent), and with "nodes" lists every node of the graph by
+full name.  It writes {"wall_time", "started", "topics": {name: {"publishers", "silent"}}, "nodes":
+[full names] (with "nodes")} to the status file, `silent` being the seconds since a publisher was
+last seen (since the watch started, if never; null while there is one), `started` when it first
+counted (wall time).  With the `dds` transport every watch sees the whole fleet's graph, with
+`zenoh` its own computer's: `fleet status` combines the agents' (fleet.plan.view).  Exits 0 on
+SIGTERM/SIGINT, 2 on a bad config.
 """
 
 from __future__ import annotations
