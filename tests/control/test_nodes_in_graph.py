@@ -37,6 +37,17 @@ def templates_with_stuck(cluster, source: Path, template: str, copy: Path) -> Pa
     return copy
 
 
+def deploy_failing_on(cluster, spec: Path, robot: str, reason: str) -> dict[str, dict]:
+    """Deploy `spec`, which fails on `robot` for `reason` (past the start-up grace); then the
+    fleet's robots as `fleet status --json` shows them, by name."""
+    done = cluster.cli("deploy", str(spec), "--timeout", "35", "--connect", cluster.endpoint, timeout=90)
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "fleet up" not in done.stdout
+    assert f"not running: {robot} degraded ({reason})" in done.stdout, done.stdout
+    status = json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout)
+    return {row["name"]: row for row in status["robots"]}
+
+
 def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_path):
     cluster = fresh_cluster
     templates = templates_with_stuck(cluster, DATA / "templates", "tiny", tmp_path / "templates")
@@ -50,14 +61,8 @@ def test_a_robot_runs_when_its_nodes_are_in_the_ros_graph(fresh_cluster, tmp_pat
     cluster.start_agent("hostA")
     cluster.wait_agents_online("hostA")
 
-    done = cluster.cli("deploy", str(spec), "--timeout", "35", "--connect", cluster.endpoint, timeout=90)
-    assert done.returncode == 1, done.stdout + done.stderr
-    assert "fleet up" not in done.stdout
     reason = "node /r2/stuck not in the ROS graph, though its process runs"
-    assert f"not running: r2 degraded ({reason})" in done.stdout, done.stdout
-
-    status = json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout)
-    robots_seen = {row["name"]: row for row in status["robots"]}
+    robots_seen = deploy_failing_on(cluster, spec, "r2", reason)
     assert {name: (row["state"], row["reason"]) for name, row in robots_seen.items()} == {
         "r1": ("running", ""),
         "r2": ("degraded", reason),
@@ -103,13 +108,8 @@ def test_in_a_world_a_robot_whose_data_flows_runs_only_with_all_its_nodes_in_the
     data["robots"][1]["template"] = "stuck_diff_drive"
     spec.write_text(yaml.safe_dump(data, sort_keys=False))
     try:
-        done = cluster.cli("deploy", str(spec), "--timeout", "35", "--connect", cluster.endpoint, timeout=90)
-        assert done.returncode == 1, done.stdout + done.stderr
         reason = "node /robot2/stuck not in the ROS graph, though its process runs"
-        assert f"not running: robot2 degraded ({reason})" in done.stdout, done.stdout
-
-        status = json.loads(cluster.cli("status", "--json", "--connect", cluster.endpoint).stdout)
-        robots = {row["name"]: row for row in status["robots"]}
+        robots = deploy_failing_on(cluster, spec, "robot2", reason)
         assert {name: (row["state"], row["reason"]) for name, row in robots.items()} == {
             "world": ("running", ""),
             "robot1": ("running", ""),
