@@ -412,8 +412,8 @@ class NodeState(BaseModel):
     exit_code: int | None = None
     uptime: float | None = None
     ros: bool = False  # a ROS node (launch's `node`), not a plain executable: it joins the ROS graph
-    # Whether this agent's watch of the fleet's ROS graph sees it there (None: not a ROS node, or
-    # the watch is not reporting yet).
+    # Whether this agent's watch of the fleet's ROS graph sees it there (None: not a ROS node, the
+    # watch is not reporting, or a new watch has not found it yet and may still).
     in_graph: bool | None = None
 
 
