@@ -92,7 +92,9 @@ class HostedRobot:
         self.error = ""
         self.restarts_before = 0  # counted before the current host process (host deaths included)
         self.reported_restarts = 0  # the current host process's count
-        self.uptime = 0.0
+        # When its nodes were made (time.time()), as the host last said: the uptime it reports
+        # is of the moment it was asked, and grows stale until it is asked again.
+        self.started_at: float | None = None
 
     def note(self, text: str) -> None:
         """A line from fleet itself into every node log of this robot."""
@@ -290,7 +292,7 @@ class HostProcess:
                 reply = self._call(add_request(robot.name, robot.nodes))
                 robot.added = True
                 if reply.get("ok"):
-                    robot.state, robot.error = RUNNING, ""
+                    robot.state, robot.error, robot.started_at = RUNNING, "", time.time()
                 else:
                     robot.error = str(reply.get("error", "refused"))
                     # The host says whether it tries again (backoff) or gave up (failed: respawn
@@ -311,7 +313,8 @@ class HostProcess:
                     continue
                 robot.reported_restarts = int(status.get("restarts", 0))
                 robot.state = HOST_STATES.get(status["state"], STARTING)
-                robot.uptime = float(status.get("uptime", 0.0))
+                uptime = float(status.get("uptime", 0.0))
+                robot.started_at = time.time() - uptime if robot.state == RUNNING else None
                 robot.error = str(status.get("error", ""))
 
     def _split_output(self, stream: IO[bytes]) -> None:
@@ -422,7 +425,7 @@ class HostPool:
                 state=state,
                 restarts=restarts,
                 exit_code=None,
-                uptime=hosted.uptime if state == RUNNING else 0.0,
+                uptime=round(time.time() - hosted.started_at, 3) if state == RUNNING and hosted.started_at else 0.0,
                 cmd=list(host.cmd),
                 process=host.name,
                 problem=problem,
