@@ -753,6 +753,7 @@ class Agent:
             overrides = dict(state.overrides) if state else {}
             discovery = self._services.get((fleet, "discovery")) if fleet else None
             bridge = self._services.get((fleet, "bridge")) if fleet else None
+            watching = (fleet, "watch") in self._services
         reply = p.StatusReply(agent=self.info, fleet=fleet, time=time.time())
         if state is None:
             return reply
@@ -766,7 +767,7 @@ class Agent:
             reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
         if bridge is not None:
             reply.bridge_pid = bridge.pid
-        watch = self._watch_report(fleet) if fleet else None
+        watch = self._watch_report(fleet) if fleet and watching else None  # no file read for an unwatched fleet
         if state.request.shared:
             reply.shared_topics = _shared_topics(watch)
         graph = _graph_report(watch)
