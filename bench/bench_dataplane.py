@@ -78,7 +78,7 @@ class Setup:
             if lan:  # the server runs on "sim"
                 command = lan.hosts["sim"].command(*command)
             self.ds = ServiceProcess(
-                self.server, command, server_environment(ros_environment(domain)), Path(tempfile.mkdtemp()) / "ds.log"
+                command, server_environment(ros_environment(domain)), Path(tempfile.mkdtemp()) / "ds.log"
             )
             self.ds.keep_running()
             time.sleep(0.5)
@@ -124,7 +124,6 @@ class ZenohSetup(Setup):
         self.tmp = Path(tempfile.mkdtemp())
         self.servers = [
             ServiceProcess(
-                self.server,
                 lan.hosts[host].command(*server_command(self.server)),
                 server_environment(ros_environment(domain)),
                 self.tmp / f"ds-{host}.log",
@@ -143,7 +142,7 @@ class ZenohSetup(Setup):
             str(self.tmp / "router"),
         ]
         self.servers.append(
-            ServiceProcess("router", lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log")
+            ServiceProcess(lan.hosts["sim"].command(*router), dict(os.environ), self.tmp / "router.log")
         )
         for service in self.servers:
             service.keep_running()
@@ -179,7 +178,7 @@ class ZenohSetup(Setup):
                 )
             )
             command = self.lan.hosts[host].command(*self.python, "-m", "fleet.dataplane.bridge", str(config))
-            bridge = ServiceProcess(host, command, self.bridge_env, self.tmp / f"bridge-{host}-{robots}.log")
+            bridge = ServiceProcess(command, self.bridge_env, self.tmp / f"bridge-{host}-{robots}.log")
             bridge.keep_running()
             self.bridges.append(bridge)
         time.sleep(3.0)  # bridges up: sessions open, endpoints declared

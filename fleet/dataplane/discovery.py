@@ -44,7 +44,7 @@ def server_environment(env: dict[str, str]) -> dict[str, str]:
 
 
 def discovery_server(server: str, env: dict[str, str], log_file: Path) -> ServiceProcess:
-    return ServiceProcess(server, server_command(server), server_environment(env), log_file)
+    return ServiceProcess(server_command(server), server_environment(env), log_file)
 
 
 WILDCARDS = {"0.0.0.0", "::"}  # a listen endpoint on every interface of this computer

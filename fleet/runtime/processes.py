@@ -83,8 +83,7 @@ class ServiceProcess:
 
     Call keep_running() from a thread that lives as long as the process should (see spawn)."""
 
-    def __init__(self, key: str, command: list[str], env: Mapping[str, str], log_file: Path):
-        self.key = key  # what it is for, compared by its owner to decide a restart
+    def __init__(self, command: list[str], env: Mapping[str, str], log_file: Path):
         self.command = command
         self.env = dict(env)
         self.log_file = log_file

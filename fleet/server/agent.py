@@ -41,7 +41,7 @@ from fleet import __version__
 from fleet.files import write_atomic
 from fleet.rules import hosts_dir, services_dir
 from fleet.runtime.node_log import logger_name
-from fleet.runtime.processes import stop_all
+from fleet.runtime.processes import ServiceProcess, stop_all
 from fleet.server.logs import robot_logs
 from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
@@ -67,6 +67,17 @@ STALLED_FETCHES = 2
 UNANSWERED_HOST_WARNING = 30.0
 WATCH_FRESH = 5.0  # s: a watch report older than this says nothing of the graph now (watch stuck?)
 GRAPH_SETTLE = 3.0  # s a new watch learns the graph before an absent node counts as absent
+
+
+@dataclass(frozen=True)
+class FleetService:
+    """What one of a fleet's helper processes here runs with, as the fleet's state decides it: a
+    running service whose description changes (another server, other routes or topics) restarts."""
+
+    server: str | None  # the fleet's DDS discovery server (address:port); what a discovery service serves
+    routes: str = ""  # a bridge's topic routes (their JSON)
+    topics: tuple[str, ...] = ()  # a watch's shared topics, whose publishers it counts
+    nodes: bool = False  # whether a watch looks for the robots' nodes in the ROS graph
 
 
 class Agent:
@@ -111,8 +122,9 @@ class Agent:
         self._confirmed_hosts: set[tuple[str, str]] = set()
         # (fleet, host) -> (monotonic time of the first unanswered ask, of the last warning)
         self._unanswered_hosts: dict[tuple[str, str], tuple[float, float]] = {}
-        # (fleet, "discovery" | "bridge") -> ServiceProcess, run by the services thread
-        self._services: dict[tuple[str, str], Any] = {}
+        # (fleet, "discovery" | "bridge" | "watch") -> what it runs and its process, run by the
+        # services thread
+        self._services: dict[tuple[str, str], tuple[FleetService, ServiceProcess]] = {}
         # Fleets whose watch here looks for their robots' nodes in the ROS graph: from when a robot
         # of it has started a ROS node here (plain executables never join the graph) for as long
         # as it has robots here (one restarting runs no node for a moment: the watch, and the
@@ -533,10 +545,10 @@ class Agent:
 
     # -- fleet services: discovery server, Zenoh bridge ----------------------------------------
 
-    def _wanted_services(self) -> dict[tuple[str, str], tuple[str, FleetState]]:
-        """(fleet, "discovery" | "bridge" | "watch") -> (key, fleet state) of every service this
-        agent should run."""
-        wanted: dict[tuple[str, str], tuple[str, FleetState]] = {}
+    def _wanted_services(self) -> dict[tuple[str, str], tuple[FleetService, FleetState]]:
+        """(fleet, "discovery" | "bridge" | "watch") -> (what it runs, fleet state) of every
+        service this agent should run."""
+        wanted: dict[tuple[str, str], tuple[FleetService, FleetState]] = {}
         with self._lock:
             states = [state for state in self._fleets.values() if state.request.bundles]
         with self._lock:
@@ -544,15 +556,17 @@ class Agent:
         for state in states:
             request, server = state.request, self._discovery_server(state)
             if server and request.discovery_host == self.name:
-                wanted[(request.fleet, "discovery")] = (server, state)
+                wanted[(request.fleet, "discovery")] = (FleetService(server), state)
             if request.transport == "zenoh" and (request.bridge.exports or request.bridge.imports):
-                routes = request.bridge.model_dump_json()
-                wanted[(request.fleet, "bridge")] = (f"{server}|{routes}", state)
+                wanted[(request.fleet, "bridge")] = (
+                    FleetService(server, routes=request.bridge.model_dump_json()),
+                    state,
+                )
             with self._lock:
                 nodes = request.fleet in self._watching_nodes
             if request.shared or nodes:
-                topics = ",".join(topic.name for topic in request.shared)
-                wanted[(request.fleet, "watch")] = (f"{server}|{topics}|{nodes}", state)
+                topics = tuple(topic.name for topic in request.shared)
+                wanted[(request.fleet, "watch")] = (FleetService(server, topics=topics, nodes=nodes), state)
         return wanted
 
     def _discovery_server(self, state: FleetState) -> str | None:
@@ -633,16 +647,17 @@ class Agent:
             now - first,
         )
 
-    def _service(self, fleet: str, kind: str, key: str, state: FleetState):
+    def _service(self, fleet: str, kind: str, service: FleetService, state: FleetState) -> ServiceProcess:
         from fleet.dataplane.discovery import discovery_server
-        from fleet.runtime.processes import ServiceProcess
 
         request = state.request
         directory = services_dir(self.store.root)
         if kind == "discovery":
-            return discovery_server(key, self._unit_env(request.domain_id, None), directory / f"{fleet}.discovery.log")
+            assert service.server is not None  # wanted only where the fleet has a server
+            log_file = directory / f"{fleet}.discovery.log"
+            return discovery_server(service.server, self._unit_env(request.domain_id, None), log_file)
         if kind == "watch":
-            return self._shared_watch(fleet, key, state)
+            return self._shared_watch(fleet, service, state)
         config = directory / f"{fleet}.bridge.json"
         directory.mkdir(parents=True, exist_ok=True)
         write_atomic(
@@ -659,28 +674,29 @@ class Agent:
             ),
         )
         command = [sys.executable, "-m", "fleet.dataplane.bridge", str(config)]
-        env = self._unit_env(request.domain_id, self._discovery_server(state))
-        return ServiceProcess(key, command, env, directory / f"{fleet}.bridge.log")
+        env = self._unit_env(request.domain_id, service.server)
+        return ServiceProcess(command, env, directory / f"{fleet}.bridge.log")
 
-    def _shared_watch(self, fleet: str, key: str, state: FleetState):
-        """The fleet's shared topic watch (fleet.dataplane.watch): a discovery super client."""
-        from fleet.runtime.processes import ServiceProcess
-
+    def _shared_watch(self, fleet: str, service: FleetService, state: FleetState) -> ServiceProcess:
+        """The fleet's watch of its shared topics and its robots' nodes (fleet.dataplane.watch): a
+        discovery super client."""
         directory = services_dir(self.store.root)
         directory.mkdir(parents=True, exist_ok=True)
         config = directory / f"{fleet}.watch.json"
         status_file = directory / f"{fleet}.watch.status.json"
         status_file.unlink(missing_ok=True)  # counts of an earlier watch are not this one's
-        topics = [topic.name for topic in state.request.shared]
-        nodes = key.endswith("|True")  # as _wanted_services decided it (the key it runs under)
-        write_atomic(
-            config, json.dumps({"fleet": fleet, "topics": topics, "nodes": nodes, "status_file": str(status_file)})
-        )
-        env = self._unit_env(state.request.domain_id, self._discovery_server(state))
+        settings = {
+            "fleet": fleet,
+            "topics": list(service.topics),
+            "nodes": service.nodes,
+            "status_file": str(status_file),
+        }
+        write_atomic(config, json.dumps(settings))
+        env = self._unit_env(state.request.domain_id, service.server)
         if "ROS_DISCOVERY_SERVER" in env:
             env["ROS_SUPER_CLIENT"] = "TRUE"  # sees every publisher without subscribing
         command = [sys.executable, "-m", "fleet.dataplane.watch", str(config)]
-        return ServiceProcess(key, command, env, directory / f"{fleet}.watch.log")
+        return ServiceProcess(command, env, directory / f"{fleet}.watch.log")
 
     def _watch_report(self, fleet: str) -> dict[str, Any] | None:
         """What this agent's watch of the fleet last wrote (None while it has written nothing)."""
@@ -697,26 +713,26 @@ class Agent:
             while not self.stop_event.is_set():
                 wanted = self._wanted_services()
                 for name in list(services):
-                    if name not in wanted or wanted[name][0] != services[name].key:
+                    if name not in wanted or wanted[name][0] != services[name][0]:
                         with self._lock:
-                            service = services.pop(name)
-                        service.stop()
-                for name, (key, state) in wanted.items():
+                            _, process = services.pop(name)
+                        process.stop()
+                for name, (service, state) in wanted.items():
                     try:
                         if name not in services:
-                            service = self._service(*name, key, state)
+                            process = self._service(*name, service, state)
                             with self._lock:
-                                services[name] = service
-                        services[name].keep_running()
+                                services[name] = (service, process)
+                        services[name][1].keep_running()
                     except OSError as error:
                         log.error("cannot run the %s of fleet %s: %s", name[1], name[0], error)
                 self.stop_event.wait(0.5)
         finally:
             with self._lock:
-                stopping = list(services.values())
+                stopping = [process for _, process in services.values()]
                 services.clear()
-            for service in stopping:
-                service.stop()
+            for process in stopping:
+                process.stop()
 
     def _stop_all_units(self) -> None:
         with self._lock:
@@ -764,9 +780,9 @@ class Agent:
         reply.has_world = state.request.has_world
         reply.discovery_in_use = self._discovery_server(state) or ""
         if discovery is not None:
-            reply.discovery_server, reply.discovery_pid = discovery.key, discovery.pid
+            reply.discovery_server, reply.discovery_pid = discovery[0].server or "", discovery[1].pid
         if bridge is not None:
-            reply.bridge_pid = bridge.pid
+            reply.bridge_pid = bridge[1].pid
         watch = self._watch_report(fleet) if fleet and watching else None  # no file read for an unwatched fleet
         if state.request.shared:
             reply.shared_topics = _shared_topics(watch)

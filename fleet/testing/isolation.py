@@ -110,9 +110,10 @@ def discovery_served(domain_id: int, log_file: Path) -> Iterator[dict[str, str]]
     from fleet.dataplane.discovery import discovery_server
     from fleet.runtime.environment import discovery_server_port
 
-    server = discovery_server(f"127.0.0.1:{discovery_server_port(domain_id)}", ros_environment(domain_id), log_file)
+    address = f"127.0.0.1:{discovery_server_port(domain_id)}"
+    server = discovery_server(address, ros_environment(domain_id), log_file)
     server.keep_running()
     try:
-        yield ros_environment(domain_id, discovery_server=server.key)
+        yield ros_environment(domain_id, discovery_server=address)
     finally:
         server.stop()
