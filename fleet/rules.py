@@ -123,8 +123,13 @@ def unit_dir(agent: Path, fleet: str, robot: str) -> Path:
     return units_dir(agent) / fleet / robot
 
 
+UNIT_LOG_DIR = "logs"  # in a unit's directory, beside its bundle's files
+# What else than its bundle's files a unit's directory holds: no bundle file may take these names.
+UNIT_OWN_NAMES = frozenset({UNIT_LOG_DIR, WORLD_STATUS_FILE})
+
+
 def unit_log_dir(unit: Path) -> Path:
-    return unit / "logs"
+    return unit / UNIT_LOG_DIR
 
 
 def services_dir(agent: Path) -> Path:

@@ -60,11 +60,17 @@ def down(
                 fleets = [fleet]
             for name in fleets:
                 replies = stop_fleet(control, name)
+                stopped = 0
                 for agent_name, reply in sorted(replies.items()):
                     if isinstance(reply, ControlError):
-                        failed = True
                         typer.echo(f"{name}: {agent_name}: {reply}", err=True)
-                typer.echo(f"fleet {name}: stopped on {len(replies)} agent(s)")
+                    elif not reply.accepted:  # e.g. it holds a later deploy, which goes on running
+                        typer.echo(f"{name}: {agent_name}: refused: {reply.reason}", err=True)
+                    else:
+                        stopped += 1
+                of_all = "" if stopped == len(replies) else f" of {len(replies)}"
+                failed = failed or bool(of_all)
+                typer.echo(f"fleet {name}: stopped on {stopped}{of_all} agent(s)")
     except ControlError as error:
         if not all_:
             raise

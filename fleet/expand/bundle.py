@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -12,6 +11,7 @@ from types import MappingProxyType
 from typing import Any, Literal
 
 from fleet.files import write_atomic
+from fleet.wire.digests import cold_json, digest_of
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ class Bundle:
     @property
     def digest(self) -> str:
         """Equal digests mean the running unit needs no restart (hot files are left out)."""
-        return hashlib.sha256(self._cold_json.encode()).hexdigest()
+        return digest_of(self._cold_json)
 
     @property
     def json_size(self) -> int:
@@ -44,10 +44,7 @@ class Bundle:
     # cached_property writes the instance's __dict__ directly.)
     @cached_property
     def _cold_json(self) -> str:
-        cold = {name: text for name, text in sorted(self.files.items()) if name not in self.hot_files}
-        return json.dumps(
-            {"entry": self.entry, "options": dict(sorted(self.options.items())), "files": cold}, sort_keys=True
-        )
+        return cold_json(self.entry, self.options, self.files, self.hot_files)
 
     def to_json(self) -> dict[str, Any]:
         return {

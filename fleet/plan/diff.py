@@ -10,6 +10,7 @@ from fleet.plan.parameters import ParameterChange, parameter_changes
 from fleet.plan.view import FleetView, RobotRow
 from fleet.rules import PARAMS_SUFFIX, WORLD_DESCRIPTION
 from fleet.wire import protocol as p
+from fleet.wire.digests import hot_digest
 
 if TYPE_CHECKING:
     from fleet.expand.bundle import Bundle
@@ -49,7 +50,7 @@ def diff(
     rows = []
     for bundle in expansion.bundles:
         running = current.pop(bundle.name, None)
-        hot = p.hot_digest(dict(bundle.files), list(bundle.hot_files))
+        hot = hot_digest(bundle.files, bundle.hot_files)
         if running is None:
             rows.append(DiffRow(bundle.name, bundle.agent, "start"))
         elif not running.digest:  # only the registry's plan knows it: its agent never ran it, or is away

@@ -35,7 +35,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from fleet import __version__
 from fleet.files import write_atomic
@@ -308,12 +308,12 @@ class Agent:
 
     def _check_apply(self, payload: bytes | None, key) -> p.ApplyRequest:
         """Decode and validate an apply (received, or fetched from the router); ProtocolError if bad."""
-        request = p.decode(payload, p.ApplyRequest)
+        request = _request_on_its_key(payload, key, p.ApplyRequest)
         if request.agent != self.name:
             raise p.ProtocolError(f"this is agent {self.name!r}, not {request.agent!r}", "wrong_agent")
-        key_fleet = p.fleet_of_key(key)
-        if key_fleet != request.fleet:
-            raise p.ProtocolError(f"apply for fleet {request.fleet!r} sent on {key}", "invalid")
+        for bundle in request.bundles:
+            if not bundle.digest_matches():
+                raise p.ProtocolError(f"bundle {bundle.name!r}: its digest is not that of its files", "invalid")
         return request
 
     def _fetch_desired(self, session) -> bool:
@@ -378,7 +378,11 @@ class Agent:
             if request.generation < held_generation:
                 reply.reason = f"superseded: this agent already holds generation {held_generation}"
                 return reply
-            if held is not None and request.generation == held_generation and held.request.bundles != request.bundles:
+            if (
+                held is not None
+                and request.generation == held_generation
+                and held.request.content_digest() != request.content_digest()
+            ):
                 reply.reason = f"generation {held_generation} was already applied with other content"
                 return reply
             state = FleetState(request=request)
@@ -822,7 +826,7 @@ class Agent:
 
     def _handle_world(self, query):
         """The world's whole status file (trails, lidar hits, obstacles), for `fleet snapshot`."""
-        request = p.decode(_payload(query), p.WorldRequest)
+        request = _request_on_its_key(_payload(query), query.key_expr, p.WorldRequest)
         yield p.world_key(request.fleet, self.name), p.encode(self.world_reply(request.fleet))
 
     def world_reply(self, fleet: str) -> p.WorldReply:
@@ -847,7 +851,7 @@ class Agent:
     # -- logs -----------------------------------------------------------------------------------
 
     def _handle_logs(self, query):
-        request = p.decode(_payload(query), p.LogsRequest)
+        request = _request_on_its_key(_payload(query), query.key_expr, p.LogsRequest)
         unit = self._unit(request.fleet, request.robot)
         states = unit.node_states()
         names = [state.name for state in states]
@@ -862,7 +866,7 @@ class Agent:
     def _handle_restart(self, query):
         """Have the reconcile thread, which alone starts and stops units, stop the unit and start
         it again as it is deployed; answer at once with the number of this restart."""
-        request = p.decode(_payload(query), p.RestartRequest)
+        request = _request_on_its_key(_payload(query), query.key_expr, p.RestartRequest)
         self._unit(request.fleet, request.robot)  # not_found for a unit not here
         key = (request.fleet, request.robot)
         with self._lock:
@@ -885,7 +889,7 @@ class Agent:
     # -- parameters -----------------------------------------------------------------------------
 
     def _handle_param(self, query):
-        request = p.decode(_payload(query), p.ParamRequest)
+        request = _request_on_its_key(_payload(query), query.key_expr, p.ParamRequest)
         unit = self._unit(request.fleet, request.robot)
         # fqn -> node name of the node asked for (by name or fqn), or of every node ("")
         nodes = {
@@ -979,6 +983,18 @@ def _seen_in_graph(node: p.NodeState, graph: GraphReport) -> bool | None:
     if graph.written > started and node.fqn in graph.nodes:
         return True
     return False if graph.settled else None
+
+
+FleetRequest = TypeVar("FleetRequest", p.ApplyRequest, p.WorldRequest, p.LogsRequest, p.RestartRequest, p.ParamRequest)
+
+
+def _request_on_its_key(payload: bytes | None, key, model: type[FleetRequest]) -> FleetRequest:
+    """Decode a request about one fleet, refused unless it came on that fleet's key: the router's
+    access rules allow a client a fleet's keys (docs/control-plane.md), not what the body names."""
+    request = p.decode(payload, model)
+    if p.fleet_of_key(key) != request.fleet:
+        raise p.ProtocolError(f"{request.kind} for fleet {request.fleet!r} sent on {key}", "invalid")
+    return request
 
 
 def _payload(query) -> bytes | None:

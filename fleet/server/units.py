@@ -109,9 +109,16 @@ class Unit:
             write_atomic(path, text, durable=True)
 
     def hot_update(self, bundle: BundleMessage, overrides: dict[str, dict[str, Any]]) -> None:
-        """Files such as world.yaml are re-read by the running process: rewrite them in place."""
-        self.bundle = bundle
-        self.write_files(overrides, names=set(bundle.hot_files))
+        """Files such as world.yaml are re-read by the running process: rewrite them in place.
+        Files that cannot be written fail the unit, as at its start (the next apply starts it
+        again): its processes would run on files that are neither the old nor the new ones."""
+        previous, self.bundle = self.bundle, bundle
+        try:
+            self.write_files(overrides, names=set(bundle.hot_files))
+        except OSError as error:
+            self.bundle = previous  # its status says what it last ran, not what it was to run
+            self.error = f"cannot write its files: {error}"
+            self.stop()
 
     # -- processes ------------------------------------------------------------------------------
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable, Mapping
 
+from fleet.rules import UNIT_OWN_NAMES
+
 MAX_MESSAGE_BYTES = 8 * 1024 * 1024
 MAX_FILE_BYTES = 1024 * 1024
 MAX_FILES_PER_BUNDLE = 64
@@ -24,6 +26,9 @@ def check_file_name(name: str) -> str:
     """A bundle file name must stay inside the unit directory: one plain component."""
     if not isinstance(name, str) or not _FILE_NAME.fullmatch(name) or ".." in name:
         raise ValueError(f"file name {name!r} is not a plain file name (no '/', no '..', no leading '.')")
+    if name in UNIT_OWN_NAMES:
+        taken = ", ".join(sorted(UNIT_OWN_NAMES))
+        raise ValueError(f"file name {name!r} is taken: the agent keeps {taken} in a unit's directory")
     return name
 
 

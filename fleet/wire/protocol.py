@@ -33,13 +33,14 @@ import hashlib
 import ipaddress
 import json
 from collections.abc import Mapping
-from typing import Any, Final, Literal, TypeVar
+from typing import Annotated, Any, Final, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fleet.errors import validation_message
 from fleet.rules import MAX_DOMAIN_ID, ROS_TOKEN_PATTERN, ros_name_problem
 from fleet.rules import key_name_problem as key_name_problem
+from fleet.wire.digests import cold_json, digest_of, hot_digest
 from fleet.wire.limits import MAX_BUNDLES as MAX_BUNDLES
 from fleet.wire.limits import MAX_FILE_BYTES as MAX_FILE_BYTES
 from fleet.wire.limits import MAX_FILES_PER_BUNDLE as MAX_FILES_PER_BUNDLE
@@ -222,6 +223,12 @@ class Message(BaseModel):
 
 ParamValue = bool | int | float | str | list[bool] | list[int] | list[float] | list[str]
 
+# A deploy's generation is its time.time_ns() (fleet.plan.desired): an int64 until the year 2262.
+# An agent refuses any generation below the one it holds, so a larger one, once accepted, would
+# hold its fleet against every later deploy.
+MAX_GENERATION: Final = 2**63 - 1
+Generation = Annotated[int, Field(ge=0, le=MAX_GENERATION)]
+
 
 # ---------------------------------------------------------------------------------------------
 # Apply: a fleet's complete desired state for one agent
@@ -257,6 +264,16 @@ class BundleMessage(BaseModel):
             raise ValueError(problem)
         return files
 
+    @field_validator("options")
+    @classmethod
+    def _group_size_a_count(cls, options: dict[str, str | int | float | bool]) -> dict[str, str | int | float | bool]:
+        """The agent places robots by it (isolation: agent); which isolations exist, the runner
+        checks (fleet.server.units.launch_problem)."""
+        size = options.get("group_size")
+        if size is not None and not (isinstance(size, str) and size.isdigit() and size.isascii() and int(size) >= 1):
+            raise ValueError(f"group_size must be a whole number of robots, at least 1, as text: got {size!r}")
+        return options
+
     @model_validator(mode="after")
     def _entry_and_hot_files_exist(self) -> BundleMessage:
         if self.entry not in self.files:
@@ -270,6 +287,11 @@ class BundleMessage(BaseModel):
     def hot_digest(self) -> str:
         return hot_digest(self.files, self.hot_files)
 
+    def digest_matches(self) -> bool:
+        """Whether `digest` is that of its files, entry and options: an agent decides what to
+        restart by digests alone, so one that says less than its files would hide a change."""
+        return self.digest == digest_of(cold_json(self.entry, self.options, self.files, self.hot_files))
+
     @classmethod
     def from_bundle(cls, bundle: Any) -> BundleMessage:
         return cls(
@@ -281,14 +303,6 @@ class BundleMessage(BaseModel):
             hot_files=list(bundle.hot_files),
             digest=bundle.digest,
         )
-
-
-def hot_digest(files: dict[str, str], hot_files: list[str]) -> str:
-    """Hash of the files applied in place: a change here needs a hot update, not a restart."""
-    h = hashlib.sha256()
-    for name in sorted(hot_files):
-        h.update(name.encode() + b"\0" + files.get(name, "").encode() + b"\0")
-    return h.hexdigest()
 
 
 MAX_ROUTES = 5000  # one way, per agent: the world's agent carries 3 for each robot elsewhere (render checks)
@@ -319,7 +333,7 @@ class ApplyRequest(Message):
     kind: Literal["apply"] = "apply"
     fleet: str
     agent: str
-    generation: int = Field(ge=0)
+    generation: Generation
     domain_id: int = Field(ge=0, le=MAX_DOMAIN_ID)
     bundles: list[BundleMessage] = Field(max_length=MAX_BUNDLES)
     sent_at: float = 0.0
@@ -641,7 +655,7 @@ class LogsRequest(Message):
     node: str | None = None
     tail: int = Field(50, ge=0, le=MAX_LOG_LINES)
     # Follow mode: byte offset per node log already seen; None on the first request.
-    cursor: dict[str, int] | None = None
+    cursor: dict[str, Annotated[int, Field(ge=0)]] | None = None
 
 
 class LogLine(BaseModel):
@@ -723,7 +737,7 @@ class ParamReply(Message):
 class PlanRecord(Message):
     kind: Literal["plan"] = "plan"
     fleet: str
-    generation: int
+    generation: Generation
     robots: dict[str, str]  # robot (or "world") -> agent
     deployed_at: float
 
@@ -806,7 +820,10 @@ def validate(data: dict[str, Any], model: type[MessageT]) -> MessageT:
     """`model` from a parsed message; an error reply or another kind raises ProtocolError."""
     expected_kind = model.model_fields["kind"].default
     if data.get("kind") == "error" and model is not ErrorReply:
-        reply = ErrorReply.model_validate(data)
+        try:
+            reply = ErrorReply.model_validate(data)
+        except ValidationError as error:
+            raise ProtocolError(f"malformed error reply: {short_validation_error(error)}", "malformed") from None
         raise ProtocolError(reply.error, reply.code)
     if data.get("kind") != expected_kind:
         raise ProtocolError(f"expected a {expected_kind!r} message, got {data.get('kind')!r}", "malformed")

@@ -19,6 +19,7 @@ import pytest
 from fleet.client import Outcome
 from fleet.expand import expand_fleet
 from fleet.plan import new_generation, requests_for
+from fleet.rules import MAX_DOMAIN_ID
 from fleet.spec import load_spec
 from fleet.testing.poll import poll
 from fleet.wire import protocol as p
@@ -169,16 +170,31 @@ BAD_PAYLOADS = {
 
 
 def _bad_payloads(cluster) -> dict[str, bytes | None]:
+    """hostA's part of a later deploy of the tiny fleet, each spoilt in one way."""
     expansion = expand_fleet(load_spec(cluster.spec()))
-    request = requests_for(expansion, new_generation(), set())[0]
+    request = {r.agent: r for r in requests_for(expansion, new_generation(), set())}["hostA"]
     good = json.loads(p.encode(request))
     payloads = dict(BAD_PAYLOADS)
     raw = json.dumps(good).encode()
     payloads["truncated"] = raw[: len(raw) // 2]
     payloads["wrong version"] = json.dumps({**good, "v": 2}).encode()
-    escape = json.loads(raw)
-    escape["bundles"][0]["files"]["../../evil.sh"] = "rm -rf /"
-    payloads["path escape"] = json.dumps(escape).encode()
+
+    def spoilt(change) -> bytes:
+        data = json.loads(raw)
+        change(data, data["bundles"][0])
+        return json.dumps(data).encode()
+
+    payloads["path escape"] = spoilt(lambda _, robot: robot["files"].update({"../../evil.sh": "rm -rf /"}))
+    # The agent decides what to restart by digests: one that is not its files' would hide a change.
+    payloads["a digest not of its files"] = spoilt(
+        lambda _, robot: robot["files"].update({robot["entry"]: "launch: []"})
+    )
+    # Accepted, it would hold the fleet against every later deploy (generations are time_ns).
+    payloads["a generation past int64"] = spoilt(lambda data, _: data.update(generation=10**30))
+    payloads["a group size of no robots"] = spoilt(
+        lambda _, robot: robot["options"].update(isolation="agent", group_size="0")
+    )
+    payloads["a file named as the unit's logs"] = spoilt(lambda _, robot: robot["files"].update(logs="x"))
     return payloads
 
 
@@ -226,11 +242,26 @@ def test_a_restart_restarts_its_robot_alone_and_bad_restart_messages_get_error_r
         "a robot not here": p.encode(p.RestartRequest(fleet="tiny", robot="robot2")),  # robot2 runs on hostB
         "a wildcard fleet": json.dumps({"v": 1, "kind": "restart", "fleet": "*", "robot": "robot1"}).encode(),
     }
+    # About fleet tiny, sent on another fleet's keys (which a router may allow a client that
+    # tiny's keys are denied to): refused before anything is done.
+    elsewhere = {
+        "a restart": (p.restart_key("other", "hostA"), p.RestartRequest(fleet="tiny", robot="robot1")),
+        "a parameter set": (
+            p.param_key("other", "hostA"),
+            p.ParamRequest(fleet="tiny", robot="robot1", node="sleeper", name="period", op="set", value=9.0),
+        ),
+        "a logs request": (p.logs_key("other", "hostA"), p.LogsRequest(fleet="tiny", robot="robot1")),
+    }
     with cluster.client() as client:
         for label, payload in bad.items():
             replies = list(client.session.get(p.restart_key("tiny", "hostA"), payload=payload, timeout=10))
             assert len(replies) == 1 and replies[0].err is not None, label
             assert json.loads(replies[0].err.payload.to_bytes())["kind"] == "error", label
+        for label, (key, request) in elsewhere.items():
+            replies = list(client.session.get(key, payload=p.encode(request), timeout=10))
+            assert len(replies) == 1 and replies[0].err is not None, label
+            error = json.loads(replies[0].err.payload.to_bytes())
+            assert error["code"] == "invalid" and error["error"].endswith(f"for fleet 'tiny' sent on {key}"), error
     assert {name: (pids, state) for name, pids, _generation, state in _settled_rows(cluster, "tiny")} == before
 
     with cluster.client() as client:
@@ -317,6 +348,39 @@ def test_older_generation_is_refused_and_told(cluster):
         refused = client.send_applies([late["hostA"]])["hostA"]
         assert not refused.accepted
         assert refused.current_generation == newer and "superseded" in refused.reason
+
+
+def test_the_held_generation_again_with_other_settings_is_refused(cluster):
+    expansion = expand_fleet(load_spec(cluster.spec()))
+    held = {r.agent: r for r in requests_for(expansion, new_generation(), set())}["hostA"]
+    other_domain = held.model_copy(update={"domain_id": (cluster.domain_id + 1) % (MAX_DOMAIN_ID + 1)})
+    with cluster.client() as client:
+        assert client.send_applies([held])["hostA"].accepted
+        assert client.send_applies([held])["hostA"].accepted  # the same again: nothing to change
+        refused = client.send_applies([other_domain])["hostA"]
+        assert not refused.accepted, refused
+        assert refused.reason == f"generation {held.generation} was already applied with other content"
+        statuses, _ = client.status("tiny")
+    assert [(s.agent.name, s.generation, s.domain_id) for s in statuses if s.agent.name == "hostA"] == [
+        ("hostA", held.generation, cluster.domain_id)
+    ]
+
+
+def test_down_says_which_agents_refused_it_and_exits_1(fresh_two_agents):
+    """An agent holding a later deploy than the `fleet down` (made on a computer whose clock is
+    ahead) refuses the down: its robots go on running, and the down says so."""
+    cluster = fresh_two_agents
+    spec = cluster.spec()
+    assert cluster.deploy(spec).ok
+    ahead = new_generation() + 3600 * 10**9  # an hour ahead
+    later = {r.agent: r for r in requests_for(expand_fleet(load_spec(spec)), ahead, set())}["hostA"]
+    with cluster.client() as client:
+        assert client.send_applies([later])["hostA"].accepted
+    down = cluster.cli("down", "--fleet", "tiny", "--connect", cluster.endpoint)
+    assert down.returncode == 1, down.stdout + down.stderr
+    assert down.stdout == "fleet tiny: stopped on 1 of 2 agent(s)\n"
+    assert down.stderr == f"tiny: hostA: refused: superseded: this agent already holds generation {ahead}\n"
+    assert {r.name: r.state for r in cluster.view("tiny").robots} == {"robot1": "running"}
 
 
 def test_concurrent_deploys_end_in_the_later_generation(cluster):

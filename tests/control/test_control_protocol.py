@@ -90,7 +90,10 @@ def test_wrong_version_is_refused(version):
     assert caught.value.code == "version"
 
 
-@pytest.mark.parametrize("name", ["../evil", "a/b", "/etc/passwd", ".hidden", "..", "a\\b", "x\0y", "", "a" * 200])
+@pytest.mark.parametrize(
+    "name",
+    ["../evil", "a/b", "/etc/passwd", ".hidden", "..", "a\\b", "x\0y", "", "a" * 200, "logs", "world.status.json"],
+)
 def test_file_names_escaping_the_unit_directory_are_refused(name):
     files = {"robot1.launch.yaml": "launch: []\n", name: "boom"}
     with pytest.raises(p.ProtocolError):
@@ -104,6 +107,11 @@ def test_file_names_escaping_the_unit_directory_are_refused(name):
         {"fleet": "*"},
         {"agent": "host$"},
         {"generation": -1},
+        {"generation": 2**63},  # past int64: once held, no later deploy could pass it
+        {"bundles": [bundle(options={"isolation": "agent", "group_size": "abc"})]},
+        {"bundles": [bundle(options={"isolation": "agent", "group_size": "0"})]},
+        {"bundles": [bundle(options={"isolation": "agent", "group_size": 4})]},  # a count as text, as expanded
+        {"bundles": [bundle(options={"isolation": "agent", "group_size": "٣"})]},  # a digit, not an ASCII one
         {"domain_id": 233},
         {"bundles": [bundle(), bundle()]},  # duplicate robot names
         {"bundles": [bundle(name="../x")]},
@@ -124,6 +132,53 @@ def test_error_replies_carry_code_and_reason():
     assert json.loads(raw) == {"v": 1, "kind": "error", "code": "invalid", "error": "nope"}
     with pytest.raises(p.ProtocolError, match="nope"):
         p.decode(raw, p.ApplyReply)
+
+
+def test_a_generation_up_to_int64_is_valid():
+    assert decode(apply(generation=2**63 - 1)).generation == 2**63 - 1
+
+
+def test_a_group_size_is_a_count_of_robots():
+    request = decode(apply(bundles=[bundle(options={"isolation": "agent", "group_size": "12"})]))
+    assert request.bundles[0].options["group_size"] == "12"
+
+
+def test_a_request_that_is_a_malformed_error_reply_is_refused_as_malformed():
+    with pytest.raises(p.ProtocolError) as caught:
+        p.decode(b'{"v": 1, "kind": "error"}', p.LogsRequest)
+    assert caught.value.code == "malformed" and "code" in str(caught.value)
+
+
+def test_a_logs_cursor_is_a_byte_offset():
+    with pytest.raises(p.ProtocolError) as caught:
+        p.decode(
+            p.encode(p.LogsRequest(fleet="f", robot="r")).replace(b'"cursor":null', b'"cursor":{"a":-5}'), p.LogsRequest
+        )
+    assert caught.value.code == "invalid"
+
+
+def test_a_bundle_s_digest_matches_only_its_own_files():
+    from fleet.expand.bundle import Bundle
+
+    made = Bundle(
+        "robot1",
+        "robot",
+        "local",
+        "robot1.launch.yaml",
+        {"robot1.launch.yaml": "launch: []\n", "w.yaml": "a: 1\n"},
+        {"isolation": "process"},
+        frozenset({"w.yaml"}),
+    )
+    message = p.BundleMessage.from_bundle(made)
+    assert message.digest_matches()
+    assert message.model_copy(update={"files": {**message.files, "w.yaml": "a: 2\n"}}).digest_matches()  # hot
+    changes: list[dict] = [
+        {"files": {**message.files, "robot1.launch.yaml": "launch: [x]\n"}},
+        {"options": {"isolation": "robot"}},
+        {"hot_files": []},
+    ]
+    for change in changes:
+        assert not message.model_copy(update=change).digest_matches(), change
 
 
 def test_keys_live_under_the_fleet():
@@ -173,6 +228,18 @@ def test_plan_changes_hot_updates_hot_files_and_retries_failed_units():
 
 
 # -- agent files --------------------------------------------------------------------------------
+
+
+def test_a_hot_update_whose_files_cannot_be_written_fails_the_unit_and_keeps_what_it_ran(tmp_path):
+    from fleet.server.units import Unit
+
+    ran = p.BundleMessage.model_validate(bundle(hot_files=["robot1.params.yaml"]))
+    new = ran.model_copy(update={"files": {**ran.files, "robot1.params.yaml": "{a: 1}\n"}})
+    unit = Unit("f", ran, tmp_path / "robot1", env={})
+    (tmp_path / "robot1" / "robot1.params.yaml").mkdir(parents=True)  # where the file goes: a directory
+    unit.hot_update(new, {})
+    assert unit.bundle is ran and unit.error.startswith("cannot write its files: "), unit.error
+    assert unit.state({}).state == "failed"
 
 
 def test_overrides_are_merged_into_the_params_file():
