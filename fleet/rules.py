@@ -141,7 +141,17 @@ def hosts_dir(agent: Path, fleet: str, number: int) -> Path:
 
 
 def ros_name_problem(name: object) -> str | None:
-    """Why `name` is not a valid ROS node/robot name, or None if it is."""
+    """Why `name` is not a valid ROS node/robot name (or namespace or topic token), or None if it
+    is.  Node names and namespaces reach the node as remap rules (`-r __node:=name`, `-r
+    __ns:=/ns`, as launch_ros passes them), which rcl refuses to parse when a token holds '__'."""
+    problem = _token_problem(name)
+    if problem is None and "__" in str(name):
+        return f"{name!r} is not a valid ROS name: '__' is reserved (rcl reads it in __ns, __node)"
+    return problem
+
+
+def _token_problem(name: object) -> str | None:
+    """Why `name` is not one token of letters, digits and underscores, or None."""
     if not isinstance(name, str):
         return f"must be a string, not {type(name).__name__}"
     if not name:
@@ -165,7 +175,7 @@ def parameter_token_problem(token: object) -> str | None:
     """Why `token` cannot be one dot-separated token of a parameter's name, or None."""
     if token == ROS_PARAMETERS_KEY:
         return f"{ROS_PARAMETERS_KEY!r} is fleet's to write: give them right under the node (controller: {{x: 1.0}})"
-    return ros_name_problem(token)
+    return _token_problem(token)  # read from a parameter file, never from a remap rule: '__' is fine
 
 
 def node_key_problem(name: object) -> str | None:

@@ -30,7 +30,7 @@ from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, spl
 from fleet.launchfile.substitutions import written as _written
 
 __all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
-from fleet.rules import ROS_TOKEN, remap_problem
+from fleet.rules import remap_problem, ros_name_problem
 from fleet.runtime import ament
 
 # ---------------------------------------------------------------------------------------------
@@ -162,7 +162,7 @@ def _valid_namespace(namespace: str) -> bool:
     if namespace == "/":
         return True
     tokens = namespace.split("/")
-    return tokens[0] == "" and all(ROS_TOKEN.fullmatch(token) for token in tokens[1:])
+    return tokens[0] == "" and not any(ros_name_problem(token) for token in tokens[1:])
 
 
 def _condition_value(value: str) -> bool | None:
@@ -491,10 +491,8 @@ class _Interpreter:
         except FleetError as problem:
             raise LaunchFileError(problem.message, where) from None
         name = None if node.name is None else text(node.name)
-        if name is not None and _UNKNOWN not in name and not ROS_TOKEN.fullmatch(name):
-            raise LaunchFileError(
-                f"invalid node name '{name}' (letters, digits and underscores, not starting with a digit)", where
-            )
+        if name is not None and _UNKNOWN not in name and (name_problem := ros_name_problem(name)):
+            raise LaunchFileError(f"node {name_problem}", where)
         own_namespace = None if node.namespace is None else text(node.namespace)
         base = scope.configurations.get("ros_namespace")
         namespace = _absolute(_prefix_namespace(base if isinstance(base, str) else None, own_namespace))

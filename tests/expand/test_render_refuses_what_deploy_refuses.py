@@ -184,7 +184,7 @@ GROUP = "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespa
 @pytest.mark.parametrize(
     ("nodes", "place", "problem"),
     [
-        (NODE.format(name="shadow-ctl", extra=""), "4:5", "invalid node name 'shadow-ctl'"),
+        (NODE.format(name="shadow-ctl", extra=""), "4:5", "node 'shadow-ctl' is not a valid ROS name"),
         (NODE.format(name="c", extra=", args: --log $(var loglevel)"), "4:5", "'loglevel' is not defined"),
         (NODE.format(name="main_ctl", extra="") * 2, "5:5", "two nodes are named /robot1/main_ctl"),
         (

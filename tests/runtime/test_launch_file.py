@@ -234,8 +234,11 @@ def test_namespace_rules(load, pushes, own, expected):
 
 def test_invalid_namespace_and_name_are_refused(load):
     refused(load, "launch:\n- push_ros_namespace: {namespace: '1bad'}\n", "invalid namespace", line=2)
-    refused(load, "launch:\n- node: {pkg: demo, exec: talker, name: 'a-b'}\n", "invalid node name")
+    refused(load, "launch:\n- node: {pkg: demo, exec: talker, name: 'a-b'}\n", "node 'a-b' is not a valid ROS name")
     refused(load, "launch:\n- node: {pkg: demo, exec: talker, namespace: 'a//b'}\n", "invalid namespace")
+    # rcl cannot parse the remap rules `__node:=con__troller` and `__ns:=/site__a` launch_ros makes of them.
+    refused(load, "launch:\n- node: {pkg: demo, exec: talker, name: con__troller}\n", "'__' is reserved")
+    refused(load, "launch:\n- push_ros_namespace: {namespace: site__a}\n", "invalid namespace", line=2)
 
 
 # -- launch configurations, scoping, conditions ----------------------------------------------

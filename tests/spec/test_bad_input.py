@@ -61,6 +61,9 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
         ("fleet: demo\nrobots:\n  - name: robot1\n  - name: robot1\n", [":4:11:", "duplicate robot name 'robot1'"]),
         ("fleet: demo\nrobots:\n  - name: 2robot\n", [":3:11:", "must not start with a digit"]),
         ("fleet: demo\nrobots:\n  - name: robot-1\n", [":3:11:", "not a valid ROS name"]),
+        # Names reach nodes as remap rules (-r __ns:=/a__b), which rcl cannot parse with '__' in them.
+        ("fleet: demo\nrobots:\n  - name: a__b\n", [":3:11:", "'a__b' is not a valid ROS name: '__' is reserved"]),
+        ("fleet: demo\nrobots:\n  - name: r1\n    namespace: /site__a/r1\n", [":4:", "'__' is reserved"]),
         ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: /site a/robot1\n", [":4:", "namespace"]),
         ("fleet: demo\nrobots:\n  - name: robot1\n    namespace: relative\n", [":4:", "absolute namespace"]),
         ("fleet: demo\nrobots:\n  - name: robot1\n    agent: hostB\n", [":4:12:", "agent 'hostB' is not declared"]),

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.rules import remap_problem
+from fleet.rules import remap_problem, ros_name_problem
 
 # (from, to, rcl accepts)
 RULES = [
@@ -73,6 +73,13 @@ RULES = [
 def test_remap_rules_refused_where_rcl_refuses_them(source, target, accepted):
     problem = remap_problem(source, target)
     assert (problem is None) == accepted, problem
+
+
+@pytest.mark.parametrize("name", ["a", "A1", "_", "_a", "a_", "a_b_c", "a__b", "__a", "a__", "2a", "a-b"])
+def test_a_valid_robot_or_node_name_is_one_rcl_takes_in_its_remap_rules(name):
+    """launch_ros passes a node's name and namespace as `-r __node:=name` and `-r __ns:=/ns`."""
+    valid = ros_name_problem(name) is None
+    assert valid == (remap_problem("__node", name) is None) == (remap_problem("__ns", f"/{name}") is None), name
 
 
 def test_the_answers_are_rcls():
