@@ -43,7 +43,7 @@ def parse_spec(text: str, file: str = "<spec>") -> FleetSpec:
         spec = FleetSpec.model_validate(data)
     except ValidationError as error:
         raise _first_problem(error, source, data) from None
-    spec = spec.model_copy(update={"source_file": file})
+    spec._source_file = file
     spec._source_map = source
     check_spec(spec, source)
     return spec

@@ -175,9 +175,14 @@ class FleetSpec(Strict):
     defaults: Defaults = Defaults()
     robots: list[Robot] = Field(min_length=1)
 
-    # Filled by the loader: where the spec came from (not part of the YAML).
-    source_file: str = Field("<spec>", exclude=True)
+    # Filled by the loader: where the spec came from (not part of the YAML, so not a field: a
+    # field, even one left out of dumps, would be a key a spec could set).
+    _source_file: str = PrivateAttr("<spec>")
     _source_map: SourceMap | None = PrivateAttr(None)  # positions in the spec file
+
+    @property
+    def source_file(self) -> str:
+        return self._source_file
 
     def where(self, *path: Any) -> str:
         """`file:line:col` of a place in the spec, for messages and --explain."""

@@ -38,6 +38,13 @@ def test_render_shows_parameter_values_and_warnings_verbatim(capsys):
     assert "\N{ROBOT FACE}" not in out
 
 
+def test_a_warning_quoting_a_newline_stays_one_line(capsys):
+    code, _, err = run_cli(["render", str(TWO_ROBOTS), "--set", "robot1.controller.new_one=a\nb\rc"], capsys)
+    assert code == 0
+    (warning,) = [line for line in err.splitlines() if "new_one" in line]
+    assert warning.startswith("warning: ") and "new_one=a\\nb\\rc:" in warning, err
+
+
 def test_explain_shows_the_value_verbatim(capsys):
     sets = ["--set", f"robot1.controller.frame_names={LIST_OF_WORDS}"]
     code, out, _ = run_cli(["render", str(TWO_ROBOTS), *sets, "--explain", "robot1.controller.frame_names"], capsys)
