@@ -19,9 +19,11 @@ def print_warnings(warnings: list[str]) -> None:
     """A spec's warnings, one `warning:` line each, on stderr: a command's output (a JSON
     document, a table) stays what it is on stdout, as kubectl's warnings do."""
     if warnings:
+        from fleet.errors import printable
+
         errors = console(stderr=True)
-        for warning in warnings:
-            errors.print(labelled("warning:", "yellow", warning))
+        for warning in warnings:  # they quote the user's input, which may hold a newline or ESC
+            errors.print(labelled("warning:", "yellow", printable(warning)))
 
 
 def print_json(data: Any) -> None:
