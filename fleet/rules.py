@@ -317,3 +317,56 @@ def remap_problem(source: str, target: str) -> str | None:
             return f"to {target!r} is not an absolute namespace such as /robot1"
         return None
     return _remap_name_problem(match, "from") or _remap_name_problem(target, "to")
+
+
+# What follows `--ros-args` on a node's command line, as rcl parses it (rcl/src/rcl/arguments.c):
+# rcl refuses the whole command line over a value it cannot parse, and rclpy and rclcpp refuse
+# arguments they do not know; either way the node does not start.  Checked against rclpy (tests).
+_ROS_FLAGS = frozenset(
+    f"--{switch}-{logs}-logs" for switch in ("enable", "disable") for logs in ("rosout", "stdout", "external-lib")
+)
+_ROS_OPTIONS = frozenset(
+    {"-r", "--remap", "-p", "--param", "--params-file", "--log-level", "-e", "--enclave", "--log-file-name"}
+)
+LOG_LEVELS = ("debug", "info", "warn", "error", "fatal", "unset")  # rcutils' severities, any case
+
+
+def ros_arguments_problem(arguments: list[str]) -> str | None:
+    """Why a node could not start with this command line's ROS arguments (those after each
+    `--ros-args`, up to `--`), or None."""
+    in_ros = False
+    index = 0
+    while index < len(arguments):
+        argument = arguments[index]
+        index += 1
+        if argument in ("--ros-args", "--"):
+            in_ros = argument == "--ros-args"
+        elif not in_ros or argument in _ROS_FLAGS:
+            continue
+        elif argument == "--log-config-file":
+            return "--log-config-file: Jazzy's logging backend (spdlog) takes no configuration file"
+        elif argument not in _ROS_OPTIONS:
+            return f"{argument!r} is not a ROS argument (rclpy and rclcpp refuse unknown ones after --ros-args)"
+        elif index == len(arguments):
+            return f"{argument} needs a value after it"
+        else:
+            if problem := _ros_option_problem(argument, arguments[index]):
+                return problem
+            index += 1
+    return None
+
+
+def _ros_option_problem(option: str, value: str) -> str | None:
+    if option in ("-r", "--remap"):
+        source, assign, target = value.partition(":=")
+        return remap_problem(source, target) if assign else f"{option} {value!r}: a remap rule is from:=to"
+    if option in ("-p", "--param"):
+        name, assign, given = value.partition(":=")
+        return None if assign and name and given else f"{option} {value!r}: a parameter override is name:=value"
+    if option == "--log-level":
+        logger, assign, level = value.rpartition(":=")
+        if (assign and not logger) or level.lower() not in LOG_LEVELS:
+            return f"--log-level {value!r}: give a level ({', '.join(LOG_LEVELS)}) or logger:=level"
+    if option in ("-e", "--enclave") and not value.startswith("/"):
+        return f"{option} {value!r}: an enclave is an absolute name such as /fleet/robot1"
+    return None

@@ -30,7 +30,7 @@ from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, spl
 from fleet.launchfile.substitutions import written as _written
 
 __all__ = ["LaunchPlan", "NodeLaunch", "check_launch_file", "load_launch_file", "parse_substitutions"]
-from fleet.rules import remap_problem, ros_name_problem
+from fleet.rules import remap_problem, ros_arguments_problem, ros_name_problem
 from fleet.runtime import ament
 
 # ---------------------------------------------------------------------------------------------
@@ -526,12 +526,18 @@ class _Interpreter:
         remaps = list(scope.configurations.get("ros_remaps", []))
         remaps += [_checked_remap(text(source), text(target), where) for source, target in node.remaps]
         exec_name = None if node.exec_name is None else text(node.exec_name)
+        arguments = self.command_line(node.args, scope, where, file) if node.args is not None else []
+        ros_arguments = None if node.ros_args is None else self.command_line(node.ros_args, scope, where, file)
+        # launch_ros puts ros_args after a --ros-args of its own; args may hold ROS arguments too.
+        given = [*arguments, "--", "--ros-args", *(ros_arguments or [])]
+        if _UNKNOWN not in "".join(given) and (ros_problem := ros_arguments_problem(given)):
+            raise LaunchFileError(f"node {name or executable}: {ros_problem}", where)
         self.sequence += 1
         return _NodeDraft(
             launch=launch,
             executable_path=executable_path,
-            arguments=self.command_line(node.args, scope, where, file) if node.args is not None else [],
-            ros_arguments=None if node.ros_args is None else self.command_line(node.ros_args, scope, where, file),
+            arguments=arguments,
+            ros_arguments=ros_arguments,
             params=params,
             remaps=remaps,
             order=self.sequence,

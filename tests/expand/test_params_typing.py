@@ -197,7 +197,8 @@ def test_written_parameter_files_read_back_as_the_same_typed_values(tmp_path):
     real rclpy): strings that rcl or YAML 1.1 would read as something else are quoted."""
     spec = tmp_path / "fleet.yaml"
     spec.write_text(
-        SPEC.replace("loop: y", "loop: y\n      battery: {}")
+        # A log level 1e-3 is text, as the test above shows, and no node starts with it.
+        SPEC.replace("loop: y", "loop: y\n      battery: {}").replace("log_level: 1e-3", "log_level: warn")
         + "      safety:\n"
         + "".join(
             f"        s{index}: {text}\n"

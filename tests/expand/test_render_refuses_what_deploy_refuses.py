@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.errors import SpecError
+from fleet.errors import FleetError, SpecError
 from fleet.expand import expand_fleet
 from fleet.spec import parse_spec
 from fleet.wire import limits, protocol
@@ -218,3 +218,11 @@ def test_render_leaves_to_the_agent_what_only_its_computer_can_tell(tmp_path):
     )
     expansion = _render_template(tmp_path, template)
     assert [robot.name for robot in expansion.robots] == ["robot1", "robot2"]
+
+
+def test_render_refuses_a_log_level_the_nodes_would_not_start_with():
+    """The built-in template passes `launch_args.log_level` to its nodes as --log-level."""
+    text = spec_text(["{name: r1, launch_args: {log_level: bogus}}"], world="")
+    with pytest.raises(FleetError, match=r"--log-level .bogus.: give a level \(debug, info"):
+        expand_fleet(parse_spec(text, "f.yaml"))
+    expand_fleet(parse_spec(spec_text(["{name: r1, launch_args: {log_level: DEBUG}}"], world=""), "f.yaml"))

@@ -232,6 +232,13 @@ def test_namespace_rules(load, pushes, own, expected):
         assert f"__ns:={expected}" in plan_node.cmd
 
 
+def test_ros_arguments_a_node_would_not_start_with_are_refused(load):
+    node = "launch:\n- node: {{pkg: demo, exec: talker, name: t, {0}}}\n"
+    refused(load, node.format("ros_args: '--log-level bogus'"), "node t: --log-level 'bogus': give a level")
+    refused(load, node.format("ros_args: '-r a-b:=c'"), "node t: from 'a-b' is not a ROS name")
+    refused(load, node.format("args: 'x --ros-args --bogus'"), "node t: '--bogus' is not a ROS argument")
+
+
 def test_invalid_namespace_and_name_are_refused(load):
     refused(load, "launch:\n- push_ros_namespace: {namespace: '1bad'}\n", "invalid namespace", line=2)
     refused(load, "launch:\n- node: {pkg: demo, exec: talker, name: 'a-b'}\n", "node 'a-b' is not a valid ROS name")

@@ -100,7 +100,7 @@ def test_a_spec_that_renders_fine_with_a_world(tmp_path, capsys):
         "robots:\n  - name: r1\n    pose: {x: 0.25}\n  - name: r2\n    pose: {x: -0.2}\n"
         "    namespace: /" + "/".join(["abcdefghi"] * 20) + "\n"
         "    parameters: {controller: {max_speed: 9.0e+300}, battery: {capacity: 9223372036854775807.0}}\n"
-        "    launch_args: {enable_safety: 'false', log_level: 3}\n"
+        "    launch_args: {enable_safety: 'false', log_level: DEBUG}\n"
         "  - {name: r3, pose: {x: 9}, lidar: {range_min: 0.5, range_max: 0.6}}\n"
     )
     from tests.checkout import run_fleet
