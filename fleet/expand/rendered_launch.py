@@ -9,7 +9,9 @@ file (known from its syntax tree, TemplateSet.identity_only) is not even rendere
 other is rendered for each robot, and the shortcut taken only when it reproduces that rendering
 exactly.  A template that depends on anything else about the robot (its pose, its model, a
 condition on its name) renders differently and is parsed on its own, so the shortcut is never
-wrong.
+wrong.  The placeholder robot is no robot of the spec: a template that cannot be rendered or read
+for it (a lookup by robot name, a branch only a long name takes) has no shape, and each robot's
+rendering is parsed on its own, its errors reported as that robot's.
 """
 
 from __future__ import annotations
@@ -70,16 +72,16 @@ class LaunchRenderer:
     def __init__(self, templates: TemplateSet, fleet: str):
         self.templates = templates
         self.fleet = fleet
-        self._shapes: dict[tuple[str, tuple[tuple[str, str], ...]], RenderedLaunch] = {}
+        # None: the placeholder robot's rendering failed (remembered, so it is tried once a shape)
+        self._shapes: dict[tuple[str, tuple[tuple[str, str], ...]], RenderedLaunch | None] = {}
 
     def render(
         self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location
     ) -> RenderedLaunch:
         name, namespace = context["robot"]["name"], context["robot"]["namespace"]
-        key = (template, tuple(sorted((k, repr(v)) for k, v in arguments.items())))
-        shape = self._shapes.get(key)
+        shape = self._shape(template, context, arguments, where)
         if shape is None:
-            shape = self._shapes[key] = self._parse(template, _with_placeholders(context), arguments, where, _NAME)
+            return self._parse(template, context, arguments, where, name)
         if self.templates.identity_only(template):
             # The robot's own rendering would be exactly this (see TemplateSet.identity_only).
             text, argument_defaults = _identify(shape.text, name, namespace), shape.argument_defaults
@@ -115,6 +117,19 @@ class LaunchRenderer:
             },
             without_file={_identify(node, name, namespace): where for node, where in shape.without_file.items()},
         )
+
+    def _shape(
+        self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location
+    ) -> RenderedLaunch | None:
+        """The template's rendering for a placeholder robot with these arguments, or None when
+        there is none: its failure is no robot's error, so it is never reported."""
+        key = (template, tuple(sorted((k, repr(v)) for k, v in arguments.items())))
+        if key not in self._shapes:
+            try:
+                self._shapes[key] = self._parse(template, _with_placeholders(context), arguments, where, _NAME)
+            except FleetError:
+                self._shapes[key] = None
+        return self._shapes[key]
 
     def _parse(
         self, template: str, context: dict[str, Any], arguments: dict[str, Any], where: Location, robot: str

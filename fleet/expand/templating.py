@@ -10,6 +10,9 @@ a template could still repeat a string a billion times, raise a number to a mill
 a filter to pad to a gigabyte, or loop without end.  Those are refused with the template's name
 (_BoundedEnvironment), output past MAX_OUTPUT_CHARS is refused, and a rendering is stopped after
 MAX_RENDER_SECONDS (on the main thread, where the CLI renders: the timer is a signal).
+
+Whatever else goes wrong in rendering a template is the template's error too, with its line: a
+user's template never ends fleet with a traceback.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from typing import Any
 
 import jinja2
 from jinja2 import nodes
+from jinja2.compiler import CodeGenerator, Frame
 from jinja2.sandbox import ImmutableSandboxedEnvironment, safe_range
 
 from fleet.errors import Location, TemplateError
@@ -73,6 +77,9 @@ def yaml_literal(value: Any) -> str:
         # JSON strings are YAML double-quoted scalars; ensure_ascii escapes line separators too.
         return json.dumps(value, ensure_ascii=True)
     if isinstance(value, (list, tuple, dict)):
+        # JSON would write a non-finite number as NaN or Infinity, which YAML reads as text.
+        for number in _floats_in(value):
+            yaml_literal(number)
         return json.dumps(value, ensure_ascii=True)
     if callable(value):  # Jinja's globals (namespace, range, dict, ...), arg, share, a macro, a method
         name = _GLOBAL_NAMES.get(id(value)) or getattr(value, "__name__", None) or getattr(value, "name", None)
@@ -81,6 +88,17 @@ def yaml_literal(value: Any) -> str:
             "file (print data such as robot.name, or call it)"
         )
     raise TypeError(f"cannot emit a value of type {type(value).__name__} into a launch file")
+
+
+def _floats_in(value: Any) -> Iterator[float]:
+    if isinstance(value, float):
+        yield value
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _floats_in(item)
+    elif isinstance(value, dict):
+        for item in (*value.keys(), *value.values()):
+            yield from _floats_in(item)
 
 
 def argument_problem(value: Any, default: Any) -> str | None:
@@ -136,7 +154,21 @@ def _power_bits(base: Any, exponent: Any) -> int:
     return exponent * (abs(base).bit_length() - 1)
 
 
+class _CodeGenerator(CodeGenerator):
+    """Jinja's compiler, able to write every number a template holds into Python source.
+
+    Jinja writes a constant of the template (a literal such as 1e400, or one it works out while
+    compiling, such as 'nan'|float or [-1e400]) into the Python it compiles the template to as
+    Python prints it: inf, nan, [-inf].  Python has no such names, so rendering failed with a
+    NameError; defined at the top of the compiled module, they are those numbers again."""
+
+    def visit_Template(self, node: nodes.Template, frame: Frame | None = None) -> None:
+        self.writeline("from math import inf, nan")
+        super().visit_Template(node, frame)
+
+
 class _BoundedEnvironment(ImmutableSandboxedEnvironment):
+    code_generator_class = _CodeGenerator
     intercepted_binops = frozenset({"*", "**"})
 
     def __init__(self, **options: Any) -> None:
@@ -349,6 +381,11 @@ class TemplateSet:
             raise TemplateError("template includes or calls itself without end", Location(path)) from None
         except (jinja2.TemplateError, TypeError, ValueError, ArithmeticError, LookupError) as error:
             raise TemplateError(str(error), Location(path, _template_line(error, path))) from None
+        except Exception as error:  # none fleet expects (Jinja's own assert, say): still the template's
+            raise TemplateError(
+                f"template could not be rendered: {type(error).__name__}: {error}",
+                Location(path, _template_line(error, path)),
+            ) from None
         return RenderedTemplate(text=text, template_file=path, arguments_asked=asked, shared=shared)
 
 

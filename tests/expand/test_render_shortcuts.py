@@ -7,7 +7,7 @@ import textwrap
 
 import pytest
 
-from fleet.errors import Location
+from fleet.errors import Location, TemplateError
 from fleet.expand import expand_fleet
 from fleet.expand.expansion import template_set_for
 from fleet.expand.rendered_launch import params_file_reference
@@ -118,3 +118,45 @@ def plan_of(expansion, name: str):
     plan = expansion.robot(name)
     assert plan is not None, name
     return plan
+
+
+LOOKUP = """\
+{% set ids = {"r1": 1, "r2": 2} %}
+launch:
+- arg: {name: robot_id, default: {{ ids[robot.name]|string }}}
+- group:
+  - push_ros_namespace: {namespace: {{ robot.namespace }}}
+"""
+
+
+def lookup_spec(tmp_path, template: str, robots: str):
+    templates = tmp_path / "lookup"
+    templates.mkdir(exist_ok=True)
+    (templates / "t.launch.yaml.j2").write_text(template)
+    text = f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: t}}\nrobots: [{robots}]\n"
+    return parse_spec(text, str(tmp_path / "fleet.yaml"))
+
+
+@pytest.mark.parametrize(
+    "template",
+    [
+        LOOKUP,
+        "launch:\n{% if robot.name|length > 20 %}\n# {{ 1/0 }}\n{% endif %}\n"
+        "- arg: {name: robot_id, default: {{ robot.name[1:] }}}\n",
+    ],
+)
+def test_a_template_the_placeholder_robot_cannot_render_renders_for_each_robot(tmp_path, template):
+    """The shortcut renders a template once for a placeholder robot, which is no robot of the spec:
+    its failure was reported as the spec's error (a key no robot has, a branch no robot takes)."""
+    expansion = expand_fleet(lookup_spec(tmp_path, template, "{name: r1}, {name: r2}"))
+    for name, number in (("r1", 1), ("r2", 2)):
+        assert f'- arg: {{name: robot_id, default: "{number}"}}' in plan_of(expansion, name).launch_text
+
+
+def test_a_robot_the_template_cannot_render_is_refused_for_itself(tmp_path):
+    with pytest.raises(TemplateError) as refused:
+        expand_fleet(lookup_spec(tmp_path, LOOKUP, "{name: r1}, {name: r3}"))
+    assert str(refused.value) == (
+        f"{tmp_path / 'lookup' / 't.launch.yaml.j2'}:3: 'dict object' has no attribute 'r3' "
+        "(available: fleet, params_file, robot, arg, share)"
+    )
