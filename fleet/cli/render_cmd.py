@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import os
+from collections.abc import Collection
 from enum import StrEnum
 from pathlib import Path, PurePosixPath
 
@@ -15,6 +17,8 @@ from fleet.cli.options import SET_HELP
 # them first, so that a robot no longer in the spec (or a format no longer asked for) leaves no
 # launch file behind for whoever launches everything under the directory.
 RENDER_MANIFEST = ".fleet-render"
+MANIFEST_HEADER = "# written by fleet render, removed by the next"  # a list without it is not fleet's
+GIVE_ANOTHER = "give a new or empty directory"
 
 
 class Format(StrEnum):
@@ -46,6 +50,8 @@ def render(
     The earlier render's files are removed first: robots gone from the spec leave nothing behind.
 
     Files fleet did not write are kept; a non-empty DIR without that list is refused.
+
+    A render is refused, leaving DIR as it was, if such a file is where it would write.
     """
     from fleet.cli.output import console, print_json, print_warnings
     from fleet.cli.plan_view import explain_data, plan_data, print_explain, print_plan
@@ -117,50 +123,123 @@ def check_output_directory(output: Path) -> None:
         raise FleetError(f"cannot read output directory: {error.strerror}", Location(output)) from None
     if foreign:
         raise FleetError(
-            f"output directory is not empty and holds no earlier render (no {RENDER_MANIFEST}): "
-            "give a new or empty directory",
+            f"output directory is not empty and holds no earlier render (no {RENDER_MANIFEST}): {GIVE_ANOTHER}",
             Location(output),
         )
 
 
-def remove_earlier_render(output: Path) -> None:
-    """Remove the files the earlier render into `output` listed, and the robot directories they
-    leave empty. Only entries `<unit>/<file>` are followed: an edited list cannot reach outside."""
+def write_bundles(expansion, output: Path, format: str) -> list[Path]:
+    """Replace the earlier render in `output` with this one, leaving out the launch format not
+    asked for. Everything that can refuse it is checked before anything is removed, so that a
+    refused render leaves the directory as it was."""
+    from fleet.errors import FleetError, Location
+
+    left_out = {"yaml": ".launch.py", "py": ".launch.yaml", "both": None}[format]
+    files = {
+        output / bundle.name / name: bundle.files[name]
+        for bundle in expansion.bundles
+        for name in sorted(bundle.files)
+        if left_out is None or not name.endswith(left_out)
+    }
+    try:
+        earlier = earlier_render(output)
+        check_room(output, earlier, files.keys())
+    except OSError as error:
+        raise FleetError(f"cannot read {error.filename or output}: {error.strerror}", Location(output)) from None
+    failure: OSError | None = None
+    try:
+        remove_earlier_render(earlier)
+        for path, text in files.items():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")  # not atomically: nothing runs from here
+    except OSError as error:  # a full disk, say: what was done stays done, and is listed
+        failure = error
+    finally:  # after a failure or Ctrl-C too
+        # Written last: it names exactly fleet's files now on disk (earlier ones left, new ones, a
+        # half-written one) for the next render to remove, and no file that is not there.
+        try:
+            if output.is_dir():
+                record_render(output, [path for path in sorted(earlier | files.keys()) if os.path.lexists(path)])
+        except OSError as error:
+            # The earlier list would name removed files and miss new ones: no list is truthful.
+            with contextlib.suppress(OSError):
+                (output / RENDER_MANIFEST).unlink(missing_ok=True)
+            failure = failure or error
+    if failure is not None:
+        raise FleetError(f"cannot write {failure.filename or output}: {failure.strerror}", Location(output))
+    return list(files)
+
+
+def earlier_render(output: Path) -> set[Path]:
+    """The files the earlier render into `output` listed that are still there. Only entries
+    `<unit>/<file>` are followed: an edited list cannot reach outside. A list that is not one fleet
+    wrote is refused rather than guessed at, for the files it names would be removed."""
+    from fleet.errors import FleetError, Location
+
     manifest = output / RENDER_MANIFEST
     if not manifest.is_file():
-        return
-    for entry in manifest.read_text(encoding="utf-8").splitlines():
+        return set()
+    try:
+        header, *entries = manifest.read_bytes().decode("utf-8").splitlines() or [""]
+    except UnicodeDecodeError:
+        raise FleetError(
+            f"not a list fleet render wrote (not UTF-8 text): {GIVE_ANOTHER}", Location(manifest)
+        ) from None
+    if header != MANIFEST_HEADER:
+        problem = f"its first line is not {MANIFEST_HEADER!r}"
+        raise FleetError(f"not a list fleet render wrote ({problem}): {GIVE_ANOTHER}", Location(manifest))
+    listed = set()
+    for entry in entries:
         path = PurePosixPath(entry)
         if len(path.parts) != 2 or path.is_absolute() or ".." in path.parts:
             continue
         unit = output / path.parts[0]
-        if unit.is_symlink():
-            continue
         file = unit / path.parts[1]
-        if file.is_file() or file.is_symlink():
-            file.unlink()
-        with contextlib.suppress(OSError):  # gone already, or holding files fleet did not write
+        try:
+            if not unit.is_symlink() and (file.is_file() or file.is_symlink()):
+                listed.add(file)
+        except OSError as error:  # a name too long, say: the list was edited
+            raise FleetError(f"cannot follow {entry!r}: {error.strerror}", Location(manifest)) from None
+    return listed
+
+
+def check_room(output: Path, earlier: set[Path], files: Collection[Path]) -> None:
+    """Each file goes where nothing is, or where the earlier render's file is (removed first), in a
+    directory fleet can write: a file fleet did not write is never written over, and a symlink is
+    never followed out of `output`."""
+    from fleet.errors import FleetError, Location
+
+    units = {path.parent for path in files}
+    for place in [*sorted(units), *files]:
+        if place in earlier or not (place.is_symlink() or place.exists()):
+            continue
+        if place in units and place.is_dir() and not place.is_symlink():
+            continue
+        kind = "symlink" if place.is_symlink() else "directory" if place.is_dir() else "file"
+        raise FleetError(
+            f"in the way of the render: a {kind} fleet did not write (move it, or give another directory)",
+            Location(place),
+        )
+    made_in = next(place for place in (output, *output.parents) if place.exists())
+    changed = {made_in, *(file.parent for file in earlier), *(unit for unit in units if unit.is_dir())}
+    for directory in sorted(changed):
+        if not os.access(directory, os.W_OK | os.X_OK):
+            raise FleetError("cannot write into this directory (no permission, or read-only)", Location(directory))
+
+
+def remove_earlier_render(earlier: set[Path]) -> None:
+    """Remove the earlier render's files, and the directories they leave empty."""
+    for file in sorted(earlier):
+        file.unlink()
+    for unit in {file.parent for file in earlier}:
+        with contextlib.suppress(OSError):  # holding files fleet did not write
             unit.rmdir()
 
 
-def write_bundles(expansion, output: Path, format: str) -> list[Path]:
-    """Write every bundle into output/<unit>/, leaving out the launch format not asked for."""
-    from fleet.errors import FleetError, Location
+def record_render(output: Path, files: list[Path]) -> None:
+    """List `files` in output/.fleet-render, replacing the earlier list in one step."""
+    from fleet.files import write_atomic
 
-    left_out = {"yaml": ".launch.py", "py": ".launch.yaml", "both": None}[format]
-    chosen = {
-        bundle.name: {name for name in bundle.files if left_out is None or not name.endswith(left_out)}
-        for bundle in expansion.bundles
-    }
-    written = [output / unit / name for unit, names in chosen.items() for name in sorted(names)]
-    try:
-        remove_earlier_render(output)
-        # Listed before they are written: a render that stops half way is still removed by the next.
-        output.mkdir(parents=True, exist_ok=True)
-        listing = "".join(f"{path.relative_to(output).as_posix()}\n" for path in written)
-        (output / RENDER_MANIFEST).write_text(f"# written by fleet render, removed by the next\n{listing}")
-        for bundle in expansion.bundles:
-            bundle.write(output / bundle.name, chosen[bundle.name], atomic=False)  # nothing runs from here
-    except OSError as error:
-        raise FleetError(f"cannot write {error.filename or output}: {error.strerror}", Location(output)) from None
-    return written
+    listing = "".join(f"{path.relative_to(output).as_posix()}\n" for path in files)
+    # readable as the launch files beside it are (a temporary file is made owner-only)
+    write_atomic(output / RENDER_MANIFEST, f"{MANIFEST_HEADER}\n{listing}", mode=0o644)

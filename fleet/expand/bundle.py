@@ -58,13 +58,9 @@ class Bundle:
             "digest": self.digest,
         }
 
-    def write(self, directory: Path, names: set[str] | None = None, atomic: bool = True) -> None:
-        """Write the files (or only `names`) into `directory`; atomically for running agents,
-        whose processes may read them at any moment."""
+    def write(self, directory: Path) -> None:
+        """Write the files into `directory`, atomically: a running unit's processes may read them
+        at any moment."""
         directory.mkdir(parents=True, exist_ok=True)
         for name, text in self.files.items():
-            if names is None or name in names:
-                if atomic:
-                    write_atomic(directory / name, text)
-                else:
-                    (directory / name).write_text(text, encoding="utf-8")
+            write_atomic(directory / name, text)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import ast
+import errno
 import json
+import os
 import textwrap
 from pathlib import Path
 
@@ -48,6 +50,140 @@ def test_render_over_an_earlier_render_leaves_only_the_new_files(tmp_path):
         "world/world.yaml",
     ]
     assert not (out / "robot2").exists() and victim.read_text() == "keep"
+
+
+def three_robots(tmp_path: Path) -> Path:
+    spec = tmp_path / "three.yaml"
+    robot3 = "  - name: robot3\n    pose: {x: 2.0, y: 3.0, yaw: 0.0}\n"
+    spec.write_text((FLEETS / "two_robots.yaml").read_text() + robot3)
+    return spec
+
+
+def snapshot(directory: Path) -> dict[str, bytes | str]:
+    """Every entry under `directory`: a file's bytes, or what a directory or symlink is."""
+    return {
+        str(path.relative_to(directory)): (
+            f"-> {path.readlink()}" if path.is_symlink() else "dir" if path.is_dir() else path.read_bytes()
+        )
+        for path in directory.rglob("*")
+    }
+
+
+def render_error(capsys, spec: Path, out: Path) -> str:
+    capsys.readouterr()
+    assert run_fleet(["render", str(spec), "-o", str(out)]) == 2
+    stderr = capsys.readouterr().err
+    assert stderr.count("\n") == 1 and stderr.startswith("fleet: error: "), stderr
+    return stderr.rstrip("\n")
+
+
+def a_file_where_robot3s_directory_goes(out: Path) -> Path:
+    (out / "robot3").write_text("notes")
+    return out / "robot3"
+
+
+def a_file_of_the_users_where_robot3s_parameters_go(out: Path) -> Path:
+    (out / "robot3").mkdir()
+    (out / "robot3" / "robot3.params.yaml").write_text("mine")
+    return out / "robot3" / "robot3.params.yaml"
+
+
+def a_symlink_out_of_the_directory_where_robot3s_directory_goes(out: Path) -> Path:
+    (out / "robot3").symlink_to(out.parent)
+    return out / "robot3"
+
+
+def a_directory_where_a_listed_file_was(out: Path) -> Path:
+    (out / "robot1" / "robot1.launch.py").unlink()
+    (out / "robot1" / "robot1.launch.py").mkdir()
+    return out / "robot1" / "robot1.launch.py"
+
+
+@pytest.mark.parametrize(
+    "in_the_way",
+    [
+        a_file_where_robot3s_directory_goes,
+        a_file_of_the_users_where_robot3s_parameters_go,
+        a_symlink_out_of_the_directory_where_robot3s_directory_goes,
+        a_directory_where_a_listed_file_was,
+    ],
+)
+def test_a_render_refused_for_what_is_in_its_way_leaves_the_directory_as_it_was(tmp_path, capsys, in_the_way):
+    """Files fleet did not write are kept, so one where the new render would write refuses it,
+    before the earlier render is removed: not a half-written directory behind an error."""
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    place = in_the_way(out)
+    before = snapshot(out)
+    line = render_error(capsys, three_robots(tmp_path), out)
+    assert f"{place}: " in line and "fleet did not write" in line
+    assert snapshot(out) == before
+
+
+@pytest.mark.parametrize(
+    ("listing", "problem"),
+    [
+        (b"\xff\n", "not UTF-8 text"),
+        (b"robot1/robot1.launch.yaml\n", "not a list fleet render wrote"),  # no header: someone else's file
+    ],
+)
+def test_a_render_list_fleet_cannot_read_is_refused_not_followed(tmp_path, capsys, listing, problem):
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    (out / ".fleet-render").write_bytes(listing)
+    before = snapshot(out)
+    line = render_error(capsys, FLEETS / "two_robots.yaml", out)
+    assert line.startswith(f"fleet: error: {out / '.fleet-render'}: ") and problem in line
+    assert snapshot(out) == before
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes whatever the permission bits say")
+def test_a_render_into_a_place_it_cannot_write_is_refused_before_anything_is_removed(tmp_path, capsys):
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    (out / "robot2").chmod(0o555)  # robot2's files cannot be removed
+    try:
+        before = snapshot(out)
+        line = render_error(capsys, three_robots(tmp_path), out)
+        assert f"{out / 'robot2'}: " in line and "cannot write" in line
+        assert snapshot(out) == before
+    finally:
+        (out / "robot2").chmod(0o755)
+
+
+def test_a_render_that_fails_half_way_lists_what_it_left_and_the_next_removes_it(tmp_path, capsys, monkeypatch):
+    """A disk that fills half way: one error line, and the list names exactly fleet's files on
+    disk (the half-written one too), so that the next render removes them all."""
+    out = render_to(tmp_path, FLEETS / "two_robots.yaml")
+    (out / "robot1" / "notes.txt").write_text("mine")
+    spec = three_robots(tmp_path)
+    write_text = Path.write_text
+    calls = []
+
+    def fill_the_disk(path, text, *args, **kwargs):
+        calls.append(path)
+        if len(calls) < 4:
+            return write_text(path, text, *args, **kwargs)
+        write_text(path, text[: len(text) // 2], *args, **kwargs)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(Path, "write_text", fill_the_disk)
+    line = render_error(capsys, spec, out)
+    monkeypatch.undo()
+    assert line.endswith(f"cannot write {calls[-1]}: No space left on device")
+    header, *listed = (out / ".fleet-render").read_text().splitlines()
+    on_disk = {str(path.relative_to(out)) for path in out.rglob("*") if path.is_file()}
+    assert header.startswith("# written by fleet render") and len(listed) == 4
+    assert set(listed) == on_disk - {".fleet-render", "robot1/notes.txt"}
+    render_to(tmp_path, FLEETS / "two_robots.yaml", "--format", "yaml")
+    files = sorted(str(path.relative_to(out)) for path in out.rglob("*") if path.is_file())
+    assert files == [
+        ".fleet-render",
+        "robot1/notes.txt",
+        "robot1/robot1.launch.yaml",
+        "robot1/robot1.params.yaml",
+        "robot2/robot2.launch.yaml",
+        "robot2/robot2.params.yaml",
+        "world/world.launch.yaml",
+        "world/world.yaml",
+    ]
 
 
 def launch_nodes(actions: list, namespace: str = "/") -> list[tuple[str, dict]]:
