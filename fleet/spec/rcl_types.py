@@ -68,6 +68,12 @@ def is_integer_text(text: str) -> bool:
     return _STRTOLL.fullmatch(text) is not None
 
 
+def is_double_out_of_range(text: str) -> bool:
+    """Whether `text` is written as a number a double cannot hold (1.0e+400, 1e-400): strtod
+    refuses it (ERANGE), so rcl reads it as the string."""
+    return bool(_DECIMAL.fullmatch(text) or _HEX_FLOAT.fullmatch(text)) and _strtod(text) is None
+
+
 def _strtoll(text: str) -> int:
     sign = -1 if text[0] == "-" else 1
     digits = text.lstrip("+-")

@@ -25,8 +25,8 @@ below them is typed from its source text by rcl_scalar (`1e-3` a double, `y` a b
 string), quoted ones and `!!str` as strings; keys (parameter names) are read as everywhere else.
 Where rcl would read a value other than as its writer most likely meant, it is refused rather
 than guessed: an empty value (rcl refuses it too), a plain `null` (a string to rcl), NaN and
-infinity, an integer beyond 64 bits (a double to rcl), and tags other than `!!str` (which rcl
-ignores).
+infinity, a number beyond a double's range (a string to rcl), an integer beyond 64 bits (a
+double to rcl), and tags other than `!!str` (which rcl ignores).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from typing import Any
 import yaml
 
 from fleet.errors import Location, SpecError
-from fleet.spec.rcl_types import is_integer_text, rcl_scalar
+from fleet.spec.rcl_types import is_double_out_of_range, is_integer_text, rcl_scalar
 
 # libyaml's parser when PyYAML was built with it: about ten times faster on big specs.
 FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -416,6 +416,12 @@ class _Composer:
                 self._location(event.start_mark),
             )
         value = rcl_scalar(text)
+        if type(value) is str and is_double_out_of_range(text):
+            raise YamlError(
+                f"{text} is beyond the range of a double: rcl would read the string {text!r} "
+                "(give a number a double holds, or quote it if the text is meant)",
+                self._location(event.start_mark),
+            )
         if type(value) is str or type(value) is bool:
             return value
         problem = None

@@ -37,6 +37,13 @@ ROBOT = "fleet: demo\nrobots:\n  - name: robot1\n"
         (ROBOT + "    pose: {x: .nan}\n", [":4:15:", "NaN and infinity are not accepted"]),
         (ROBOT + "    parameters: {controller: {max_speed: -.inf}}\n", [":4:", "NaN and infinity"]),
         (ROBOT + "    pose: {y: 1.0e+400}\n", [":4:15:", "too large for a float"]),
+        # In parameters rcl's strtod refuses them, and rcl reads the text: refused as nan is.
+        (
+            ROBOT + "    parameters: {controller: {timeout: 1.0e+400}}\n",
+            [":4:", "1.0e+400 is beyond the range of a double"],
+        ),
+        (ROBOT + "    parameters: {controller: {timeout: [1.0, 1e-400]}}\n", [":4:", "1e-400 is beyond the range"]),
+        (ROBOT + "    parameters: {controller: {timeout: 0x1p99999}}\n", [":4:", "0x1p99999 is beyond the range"]),
         (
             "fleet: demo\nworld:\n  obstacles: [{name: b, type: box, position: [3, 3], size: [1, .inf, 1]}]\n"
             "robots: [{name: r1}]\n",
