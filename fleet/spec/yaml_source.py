@@ -22,7 +22,8 @@ Timestamps (`2024-05-01`) stay strings, as ROS's own parameter parser reads them
 Parameter values are read as rcl reads them, not by YAML 1.1's rules (fleet.spec.rcl_types):
 a caller names the mappings that hold a node's parameters (`parameter_paths`), and every scalar
 below them is typed from its source text by rcl_scalar (`1e-3` a double, `y` a bool, `1_000` a
-string), quoted ones and `!!str` as strings; keys (parameter names) are read as everywhere else.
+string), quoted ones and `!!str` as strings; keys (node and parameter names) as the text they are
+(YAML 1.1 would make `on: 1.0` a parameter named True).
 Where rcl would read a value other than as its writer most likely meant, it is refused rather
 than guessed: an empty value (rcl refuses it too), a plain `null` (a string to rcl), NaN and
 infinity, a number beyond a double's range (a string to rcl), an integer beyond 64 bits (a
@@ -252,9 +253,12 @@ class _Composer:
                     raise self._too_many(event, alias=False)
                 value, size = event.value, 1
                 rcl = stack[-1].rcl if stack else self.parameter_paths
-                # Parameter values are typed as rcl types them; keys (names) as everything else.
+                # Parameter values are typed as rcl types them; their keys (node and parameter
+                # names) are text to rcl, as they are written (`on`, `no`, `5` stay names).
                 if rcl is True and (not stack or type(stack[-1].container) is list or stack[-1].key is not _NO_KEY):
                     value = self._rcl_scalar(event)
+                elif rcl is True and event.tag is None:
+                    pass
                 elif event.tag is not None or (event.implicit[0] and (not value or value[0] in _TYPED_FIRST)):
                     value = self._scalar(event, loader)  # anything but a plain string (see _scalar)
                 if event.anchor is not None:

@@ -90,6 +90,12 @@ def test_spec_parameters_are_typed_as_rcl_types_them_and_nothing_else_is():
     assert spec.robots[0].launch_args == {"log_level": "1e-3"}
 
 
+def test_parameter_names_are_the_text_written():
+    """rcl reads a key as its text; YAML 1.1 would make `on` True and `no` False."""
+    text = "fleet: demo\nrobots:\n  - name: r1\n    parameters:\n      controller: {no: 1.0, y: on, pid: {on: 2}}\n"
+    assert parse_spec(text).robots[0].parameters == {"controller": {"no": 1.0, "y": True, "pid": {"on": 2}}}
+
+
 def test_rcl_typing_of_values_rcl_reads_differently_from_yaml_1_1():
     data, _ = load_yaml(
         textwrap.dedent(

@@ -85,7 +85,6 @@ ROBOT = "fleet: demo\nrobots:\n  - name: robot1\n"
             ROBOT + "    parameters: {controller: {max_speed: 1.0, max_speed.x: 2.0}}\n",
             [":4:", "max_speed is both a parameter and the namespace of controller.max_speed.x"],
         ),
-        (ROBOT + "    parameters: {controller: {pid: {true: 1}}}\n", [":4:", "must be text, not bool"]),
         (ROBOT + "    launch_args: {enable_safety: 7}\n", [":4:", "enable_safety is true or false", "got 7"]),
         (ROBOT + "    launch_args: {enable_safety: maybe}\n", [":4:", "enable_safety is true or false"]),
     ],
