@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
 from fleet.rules import LOCAL_AGENT, MAX_DOMAIN_ID
 from fleet.spec.yaml_source import SourceMap
@@ -28,7 +28,15 @@ def _ints_to_floats(data: Any, keep: frozenset[str] = frozenset()) -> Any:
     return out
 
 
-ScalarArg = bool | int | float | str
+def _one_value(value: Any) -> Any:
+    """A launch argument is one scalar; said so, not as the first member of the union that failed."""
+    if value is None or isinstance(value, (list, dict)):
+        kind = "null" if value is None else "a list" if isinstance(value, list) else "a mapping"
+        raise ValueError(f"a launch argument takes one value (text, a number, true or false), not {kind}")
+    return value
+
+
+ScalarArg = Annotated[bool | int | float | str, BeforeValidator(_one_value)]
 
 # process: one process per node; robot: a robot's fleet_nodes share one process; agent: the
 # fleet_nodes of all robots of an agent share host processes of up to group_size robots each.

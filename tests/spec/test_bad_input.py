@@ -53,6 +53,10 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             [":4:5:", "unknown key 'parmeters'", "did you mean 'parameters'"],
         ),
         ("fleet: demo\nrobts:\n  - name: robot1\n", [":2:1:", "unknown key 'robts'", "did you mean 'robots'"]),
+        (
+            "fleet: demo\nrobots:\n  - name: r1\n    launch_args: {log_level: [a]}\n",
+            [":4:30:", "a launch argument takes one value (text, a number, true or false), not a list"],
+        ),
         # Where the spec came from is the loader's to say, not a key a spec may set.
         ("fleet: demo\nsource_file: /etc/passwd\nrobots: [{name: r1}]\n", [":2:1:", "unknown key 'source_file'"]),
         (
