@@ -141,12 +141,13 @@ def template_set_for(spec: FleetSpec) -> TemplateSet:
     if spec.templates is not None:
         try:
             directories.append((Path(spec.source_file).parent / spec.templates).resolve())
-            found = directories[0].is_dir()
+            problem = None if directories[0].is_dir() else "is not a directory" if directories[0].exists() else ""
         except (OSError, ValueError):  # a NUL in the name, a loop of links
-            found = False
-        if not found:
+            problem = ""
+        if problem is not None:
             raise SpecError(
-                f"templates directory {spec.templates} does not exist", _spec_location(spec, ("templates",))
+                f"templates directory {spec.templates} {problem or 'does not exist'}",
+                _spec_location(spec, ("templates",)),
             )
     # Read within this command, whose working directory stays: relative paths name them in messages.
     return TemplateSet([relative_to_cwd(directory) for directory in directories + builtin_template_dirs()])

@@ -138,7 +138,9 @@ def config_file(explicit: str | Path | None) -> Path | None:
         return None
     path = Path(value).expanduser()
     if not path.is_file():
-        raise FleetError("no such Zenoh config file", Location(path))
+        raise FleetError(
+            "a directory, not a Zenoh config file" if path.is_dir() else "no such Zenoh config file", Location(path)
+        )
     return path
 
 

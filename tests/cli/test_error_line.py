@@ -80,6 +80,11 @@ def test_output_directory_that_is_a_file(tmp_path, capsys):
     assert output.read_text() == "mine"
 
 
+def test_a_zenoh_config_that_is_a_directory_is_said_so(tmp_path, capsys):
+    line = one_error_line(capsys, ["status", "--zenoh-config", str(tmp_path)])
+    assert line == f"fleet: error: {tmp_path}: a directory, not a Zenoh config file"
+
+
 def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
     spec = tmp_path / "fleet.yaml"
     spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")

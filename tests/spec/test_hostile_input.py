@@ -220,3 +220,9 @@ def test_endless_file_is_refused_after_its_limit(capsys):
 
     code, _, stderr = run_cli(["render", "/dev/zero"], capsys)
     assert code == 2 and "/dev/zero: fleet spec file is larger than" in stderr, stderr
+
+
+def test_templates_directory_that_is_a_file(tmp_path, capsys):
+    (tmp_path / "templates").write_text("")
+    line = refused(tmp_path, capsys, "fleet: demo\ntemplates: templates\nrobots: [{name: r1}]\n")
+    assert f"{tmp_path / 'fleet.yaml'}:2:" in line and "templates directory templates is not a directory" in line
