@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import re
 import types
 import typing
 from pathlib import Path
@@ -269,7 +270,15 @@ def _parent(loc: DocPath) -> str:
     return ".".join(parts).replace(".[", "[")
 
 
+# A number YAML 1.1 reads as a string: an exponent, but no '.' in the mantissa (1e2, -3E-4).
+_EXPONENT_WITHOUT_DOT = re.compile(r"[+-]?[0-9]+[eE][+-]?[0-9]+")
+
+
 def _describe(value: Any) -> str:
+    if isinstance(value, str) and _EXPONENT_WITHOUT_DOT.fullmatch(value):
+        mantissa, _, exponent = value.lower().partition("e")
+        signed = exponent if exponent[0] in "+-" else f"+{exponent}"  # YAML 1.1 wants the sign too
+        return f"string {value!r} (YAML reads 1e2 as text: write {mantissa}.0e{signed})"
     if isinstance(value, str):
         return f"string {value!r}"
     if value is None:

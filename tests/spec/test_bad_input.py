@@ -57,6 +57,10 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             "fleet: demo\nrobots:\n  - name: r1\n    launch_args: {log_level: [a]}\n",
             [":4:30:", "a launch argument takes one value (text, a number, true or false), not a list"],
         ),
+        (
+            "fleet: demo\nworld: {physics_rate: 1e2}\nrobots: [{name: r1}]\n",
+            [":2:23:", "got string '1e2' (YAML reads 1e2 as text: write 1.0e+2)"],
+        ),
         # Where the spec came from is the loader's to say, not a key a spec may set.
         ("fleet: demo\nsource_file: /etc/passwd\nrobots: [{name: r1}]\n", [":2:1:", "unknown key 'source_file'"]),
         (
