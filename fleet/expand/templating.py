@@ -380,7 +380,10 @@ class TemplateSet:
         except RecursionError:
             raise TemplateError("template includes or calls itself without end", Location(path)) from None
         except (jinja2.TemplateError, TypeError, ValueError, ArithmeticError, LookupError) as error:
-            raise TemplateError(str(error), Location(path, _template_line(error, path))) from None
+            # A call of arg() or share() with the wrong arguments names them as Python does: by
+            # where they are defined, here.  The template knows them as arg() and share().
+            message = str(error).replace(f"{TemplateSet.render.__qualname__}.<locals>.", "")
+            raise TemplateError(message, Location(path, _template_line(error, path))) from None
         except Exception as error:  # none fleet expects (Jinja's own assert, say): still the template's
             raise TemplateError(
                 f"template could not be rendered: {type(error).__name__}: {error}",

@@ -67,3 +67,10 @@ def test_an_unexpected_failure_of_jinja_is_the_templates_one_line(tmp_path, caps
     assert refusal(capsys, code) == (
         f"fleet: error: {template}:4: template could not be rendered: AssertionError: expected length >= 3, got 1"
     )
+
+
+def test_arg_called_wrongly_is_named_as_the_template_knows_it(tmp_path, capsys):
+    code, template = render_template(tmp_path, "- arg: {name: speed, default: {{ arg('speed') }}}\n")
+    assert refusal(capsys, code) == (
+        f"fleet: error: {template}:2: arg() missing 1 required positional argument: 'default'"
+    )
