@@ -234,12 +234,32 @@ def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> Spec
         )
     if kind == "too_short" and loc == ("robots",):
         return SpecError("robots: a fleet needs at least one robot", source.locate(loc))
+    if kind == "invalid_key" or problem["loc"][-1] == "[key]":
+        # A key YAML 1.1 read as something else (yes, on, 5): pydantic says where by its value.
+        key = problem["input"]
+        at = loc if problem["loc"][-1] == "[key]" else (*loc[:-1], key)
+        in_parent = f" in {_parent(at)}" if at[:-1] else ""
+        return SpecError(
+            f"key {_describe(key)}{in_parent}: keys here are names, written as text (quote it)",
+            source.locate(at, key=True),
+        )
     message = validation_message(problem)
     if kind.endswith("_type") or kind in ("literal_error", "too_short"):
-        got = problem.get("input")
+        got = _as_written(problem.get("input"), loc, data)
         if kind != "too_short":
             message = f"{message}, got {_describe(got)}"
     return SpecError(f"{where}: {message}" if where else message, source.locate(loc))
+
+
+def _as_written(value: Any, loc: DocPath, data: Any) -> Any:
+    """The value at `loc` as the spec has it: the models see integers as floats (_ints_to_floats),
+    so pydantic's `5.0` was the user's `5`."""
+    for part in loc:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return value
+    return data if data == value else value
 
 
 def _data_path(loc: tuple[Any, ...], data: Any) -> DocPath:

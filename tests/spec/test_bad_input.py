@@ -61,6 +61,11 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             "fleet: demo\nworld: {physics_rate: 1e2}\nrobots: [{name: r1}]\n",
             [":2:23:", "got string '1e2' (YAML reads 1e2 as text: write 1.0e+2)"],
         ),
+        # Keys YAML 1.1 reads as other than text, named where they are.
+        ("fleet: demo\nyes: 1\nrobots: [{name: r1}]\n", [":2:1:", "key bool True: keys here are names"]),
+        ("fleet: demo\nagents: {5: {}}\nrobots: [{name: r1}]\n", [":2:10:", "key int 5 in agents: keys here"]),
+        # The models see integers as floats; the message shows what was written.
+        ("fleet: demo\nworld: {agent: 5}\nrobots: [{name: r1}]\n", [":2:16:", "world.agent:", "got int 5"]),
         # Where the spec came from is the loader's to say, not a key a spec may set.
         ("fleet: demo\nsource_file: /etc/passwd\nrobots: [{name: r1}]\n", [":2:1:", "unknown key 'source_file'"]),
         (
