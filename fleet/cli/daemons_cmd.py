@@ -70,7 +70,7 @@ def agent(
     _logging()
     directory = state_dir or rules.agent_dir(rules.state_dir(), name)
     try:
-        daemon = Agent(name, [connect or default_endpoint()], directory, config, address)
+        daemon = Agent(name, [default_endpoint() if connect is None else connect], directory, config, address)
     except ValueError as error:
         raise FleetError(str(error)) from None
     daemon.stop_event = stop_on_signals()

@@ -33,7 +33,7 @@ def connect(
 ) -> ControlClient:
     """A client of the router at `endpoint` (default: $FLEET_CONNECT or the local one), with the
     Zenoh config file given or named by $FLEET_ZENOH_CONFIG."""
-    return ControlClient([endpoint or default_endpoint()], config_file(zenoh_config), on_wait)
+    return ControlClient([default_endpoint() if endpoint is None else endpoint], config_file(zenoh_config), on_wait)
 
 
 def _open_session(

@@ -80,6 +80,11 @@ def test_output_directory_that_is_a_file(tmp_path, capsys):
     assert output.read_text() == "mine"
 
 
+def test_an_empty_endpoint_is_refused_not_taken_for_the_default(capsys):
+    line = one_error_line(capsys, ["status", "--connect", ""])
+    assert line == "fleet: error: <command line>: endpoint '' is not PROTOCOL/HOST:PORT (such as tcp/10.0.0.1:7447)"
+
+
 def test_a_zenoh_config_that_is_a_directory_is_said_so(tmp_path, capsys):
     line = one_error_line(capsys, ["status", "--zenoh-config", str(tmp_path)])
     assert line == f"fleet: error: {tmp_path}: a directory, not a Zenoh config file"
