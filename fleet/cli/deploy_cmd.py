@@ -306,23 +306,26 @@ def _print_outcome(outcome, out) -> None:
 
 
 def _start_agents_hint(agents: list[str], endpoint: str) -> str:
-    """How to start the agents a deploy could not reach: the router holds their robots for them."""
+    """How to start the agents a deploy could not reach (they may run and be cut off, too): the
+    router holds their robots for them until they connect."""
     from fleet.wire.session import endpoint_parts, on_loopback
 
     if len(agents) == 1:
-        which, where, name = f"agent {agents[0]}", "its computer", agents[0]
+        which, kept, where, name = f"agent {agents[0]} does", "its robots for it", "start it", agents[0]
     else:
-        which, where, name = f"agents {', '.join(agents)}", "each one's computer", "NAME"
+        which, kept, where, name = f"agents {', '.join(agents)} do", "their robots for them", "start each", "NAME"
+    lead = f"hint: {which} not answer (the router keeps {kept}); if not running, {where} on its computer:"
     parts = endpoint_parts(endpoint)
+    # Over TLS an agent needs its own certificate: the config `fleet certs` made for it.
+    certificate = f" --zenoh-config agent-{name}.json5" if parts is not None and parts[0] == "tls" else ""
     if parts is None or not on_loopback(endpoint):
-        command = f"fleet agent --name {name} --connect {endpoint}"
-        return f"hint: start {which}: on {where} `{command}` (docs/multi-computer.md)"
+        return f"{lead} `fleet agent --name {name} --connect {endpoint}{certificate}` (docs/multi-computer.md)"
     # The router is this computer's (the local daemon's): other computers reach it at an address
     # of this one, and the local daemon can run the agents here.
     protocol, _, port = parts
     local = " ".join(f"--agent {agent}" for agent in agents)
     return (
-        f"hint: start {which}: on {where} `fleet agent --name {name} --connect {protocol}/ADDRESS:{port}` "
+        f"{lead} `fleet agent --name {name} --connect {protocol}/ADDRESS:{port}{certificate}` "
         f"(ADDRESS: this computer's, on their network; docs/multi-computer.md), or all on this one: `fleet up {local}`"
     )
 

@@ -163,7 +163,7 @@ class Agent:
             self._session = open_client_retrying(self.connect, self.zenoh_config, AGENT_LEASE_MS, self.stop_event)
             if self._session is not None:
                 self._declare(self._session)
-                log.info("agent %s serving on %s", self.name, ", ".join(self.connect))
+                log.info("agent %s connected to the router at %s", self.name, ", ".join(self.connect))
                 self._serve()
         finally:
             self.stop_event.set()

@@ -460,7 +460,7 @@ def test_killed_agent_shows_offline_and_restores_its_robots(cluster):
         "deploy", str(spec), "--connect", cluster.endpoint, "--set", "robot1.sleeper.period=1.5", "--timeout", "10"
     )
     assert done.returncode != 0 and "agent hostB is unreachable" in done.stdout, done.stdout
-    assert "hint: start agent hostB: on its computer `fleet agent --name hostB --connect tcp/ADDRESS:" in done.stderr
+    assert "start it on its computer: `fleet agent --name hostB --connect tcp/ADDRESS:" in done.stderr
     view = cluster.view("tiny")
     assert robot(view, "robot1").state == "running" and robot(view, "robot1").generation > first.generation
     assert {robot(view, name).state for name in ("robot2", "robot3")} <= {"offline", "pending"}
