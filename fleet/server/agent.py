@@ -400,12 +400,13 @@ class Agent:
                 if fleet == request.fleet and (unit.error or (unit.session is not None and unit.env != env))
             }
             changes = plan_changes(current, desired, again)
-            # Overrides survive redeploys of an unchanged robot; a changed robot gets the spec's values.
+            # Overrides survive redeploys of a robot whose description is unchanged, restarted or
+            # not (in another ROS environment, or after a failure); a changed robot gets the spec's.
             if held:
                 state.overrides = {
                     robot: values
                     for robot, values in held.overrides.items()
-                    if robot in changes.unchanged or robot in changes.hot_update
+                    if robot in current and robot in desired and current[robot].digest == desired[robot].digest
                 }
             # What it runs came with an earlier deploy only when this one leaves it unchanged.
             kept = held.deployed if held else {}

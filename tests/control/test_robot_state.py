@@ -127,3 +127,17 @@ def test_a_robot_being_restarted_is_pending_not_stopped(agents):
     (robot,) = agent.status("f").robots
     assert robot.state == "pending" and robot.reason.startswith("restarting"), robot
     assert robot.deployed_generation == 2  # what it is brought to
+
+
+def test_live_overrides_outlive_a_restart_into_another_ros_environment_not_a_change(agents):
+    """`fleet param set` values are kept until the robot's spec changes: a deploy that only moves
+    the fleet's ROS domain (or discovery server) restarts the robot with them."""
+    agent = agents()
+    robot1, robot2 = bundle("robot1", sleeper()), bundle("robot2", sleeper())
+    assert agent.apply(request(1, robot1, robot2)).accepted
+    agent._reconcile("f")
+    agent._fleets["f"].overrides = {name: {f"/{name}/battery": {"rate": 2.0}} for name in ("robot1", "robot2")}
+    moved = request(2, robot1, bundle("robot2", sleeper("safety"))).model_copy(update={"domain_id": 1})
+    reply = agent.apply(moved)
+    assert reply.accepted and reply.changes.restart == ["robot1", "robot2"], reply
+    assert agent._fleets["f"].overrides == {"robot1": {"/robot1/battery": {"rate": 2.0}}}  # robot2 changed
