@@ -127,8 +127,17 @@ def deploy(
     desired = with_planned_agents(requests, registries, expansion.fleet, outcome.generation, expansion.domain_id)
     plan = plan_record(expansion, outcome.generation)
     held = held_generation(requests, statuses)
-    if held is not None:  # a no-op redeploy: the agents, the router's copy and the plan are as wanted
+    # A no-op redeploy whose router has no record of it (started again without its state
+    # directory): the router is given the plan and the desired states again, at the generation
+    # the agents hold, so that status shows the robots of an agent that goes away.
+    restore = held is not None and not _plan_taken(registries, expansion.fleet, held)
+    if held is not None:  # a no-op redeploy: the agents hold what is wanted
         outcome.generation, outcome.already_applied = held, True
+        if restore:
+            requests = [request.model_copy(update={"generation": held}) for request in requests]
+            desired = with_planned_agents(requests, registries, expansion.fleet, held, expansion.domain_id)
+            plan = plan_record(expansion, held)
+            _record(client, desired, plan)
     else:
         outcome.problems = _problems(client, requests)
         if outcome.problems:
@@ -151,7 +160,9 @@ def deploy(
             break
         # Even without waiting for the robots, the router must hold the plan and the desired
         # states before the session closes: closing right after the puts can lose them.
-        judged = outcome.already_applied or _plan_taken(registries, expansion.fleet, outcome.generation)
+        judged = (outcome.already_applied and not restore) or _plan_taken(
+            registries, expansion.fleet, outcome.generation
+        )
         outcome.recorded = outcome.recorded or judged
         if judged and not wait:
             break

@@ -4,12 +4,14 @@ deploy of the same spec changes nothing, and an agent restarted afterwards gets 
 
 from __future__ import annotations
 
+import shutil
 import signal
 import time
 
 import psutil
 import pytest
 
+from fleet.testing.control_plane import ROUTER
 from fleet.testing.poll import poll
 
 pytestmark = pytest.mark.integration
@@ -68,3 +70,35 @@ def test_robots_keep_running_and_agents_reconnect_when_the_router_restarts(fresh
     assert again.ok
     hosta_pids = {name: group for name, group in pids.items() if name not in hostb}
     assert {name: group for name, group in node_pids(cluster.view("tiny")).items() if name not in hostb} == hosta_pids
+
+
+def test_a_no_op_redeploy_gives_a_router_that_lost_its_records_the_plan_again(fresh_two_agents):
+    """A router started again without its state directory knows nothing of what runs where; a
+    redeploy of the same spec changes nothing on the agents, and gives the router its records
+    again: an agent that then goes away still shows its robots, offline."""
+    cluster = fresh_two_agents
+    first = cluster.deploy(cluster.spec())
+    assert first.ok
+    cluster.kill("router", signal.SIGKILL)
+    shutil.rmtree(cluster.root / ROUTER)
+    cluster.start_router()
+    cluster.wait_agents_online("hostA", "hostB")
+
+    again = cluster.deploy(cluster.spec())
+    assert again.ok and again.nothing_changed and again.generation == first.generation
+    with cluster.client() as client:
+        _, registries = client.status("tiny")
+    assert [plan.generation for registry in registries for plan in registry.history if registry.fleet == "tiny"] == [
+        first.generation
+    ]
+    cluster.kill("agent-hostB", signal.SIGKILL)
+    view = poll(
+        lambda: cluster.view("tiny"),
+        until=lambda view: any(a.name == "hostB" and not a.online for a in view.agents),
+        timeout=10,
+        what="hostB shown offline",
+    )
+    assert {row.name: row.state for row in view.robots if row.agent == "hostB"} == {
+        "robot2": "offline",
+        "robot3": "offline",
+    }
