@@ -48,7 +48,7 @@ def plan_discovery(
         note = f"agent {preferred} is offline: agent {host} runs the DDS discovery server"
     if host is not None:
         server = f"{addresses[host]}:{port}"
-        if unreachable := _loopback_for_others(host, addresses[host], agents, hostnames or {}):
+        if unreachable := _loopback_for_others(host, addresses, agents, hostnames or {}):
             note = f"{note}; {unreachable}" if note else unreachable
         return DiscoveryPlan(host, server, note)
     if preferred is None:
@@ -63,23 +63,38 @@ def plan_discovery(
     )
 
 
-def _loopback_for_others(host: str, address: str, agents: list[str], hostnames: Mapping[str, str]) -> str:
+def _loopback_for_others(
+    host: str, addresses: Mapping[str, str], agents: list[str], hostnames: Mapping[str, str]
+) -> str:
     """Why agents on other computers cannot reach a server at a loopback address, or "".  An agent
     reports 127.0.0.1 when it reaches the router through loopback (router and agent on one
-    computer) or was told `--address 127.0.0.1`."""
-    try:
-        loopback = ipaddress.ip_address(address).is_loopback
-    except ValueError:
-        loopback = address == "localhost"
+    computer) or was told `--address 127.0.0.1`.  Another agent is on another computer when its
+    computer's name differs, or when it reports an address that is not loopback: it reached the
+    router over the network (robot computers made from one image often share a name)."""
+    address = addresses[host]
+    if not _is_loopback(address):
+        return ""
     here = hostnames.get(host)
-    elsewhere = sorted(a for a in agents if here and hostnames.get(a, here) != here)
-    if not loopback or not elsewhere:
+    elsewhere = sorted(
+        agent
+        for agent in agents
+        if agent != host
+        and ((here and hostnames.get(agent, here) != here) or not _is_loopback(addresses.get(agent, address)))
+    )
+    if not elsewhere:
         return ""
     return (
         f"agent {host} runs the DDS discovery server at {address}, a loopback address: the robots of "
         f"{', '.join(elsewhere)} on other computers cannot reach it. Start agent {host} with "
         "--address set to its address on the robots' network (or --connect to the router's address on it)"
     )
+
+
+def _is_loopback(address: str) -> bool:
+    try:
+        return ipaddress.ip_address(address).is_loopback
+    except ValueError:
+        return address == "localhost"
 
 
 def local_servers(agents: list[str], domain_id: int, hostnames: Mapping[str, str] | None = None) -> dict[str, str]:

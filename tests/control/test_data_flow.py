@@ -223,9 +223,17 @@ def test_a_server_at_a_loopback_address_that_other_computers_need_is_said_so():
     assert plan.server == f"127.0.0.1:{discovery_server_port(7)}"
     assert "at 127.0.0.1, a loopback address: the robots of rack_a on other computers cannot reach it" in plan.note
     assert "Start agent sim with --address" in plan.note
-    # All on one computer, or computers not known apart: loopback is right, nothing to say.
-    assert plan_discovery("sim", ["sim", "rack_a"], addresses, 7, {"sim": "ws", "rack_a": "ws"}).note == ""
-    assert plan_discovery("sim", ["sim", "rack_a"], addresses, 7).note == ""
+    # One name for both computers (made from one image), or names not known: rack_a reached the
+    # router over the network, so it is on another computer all the same.
+    for hostnames in ({"sim": "ubuntu", "rack_a": "ubuntu"}, None):
+        assert (
+            "the robots of rack_a on other computers"
+            in plan_discovery("sim", ["sim", "rack_a"], addresses, 7, hostnames).note
+        )
+    # All on one computer (each reached the router through loopback): loopback is right, nothing to say.
+    both_here = {"sim": "127.0.0.1", "rack_a": "127.0.0.1"}
+    assert plan_discovery("sim", ["sim", "rack_a"], both_here, 7, {"sim": "ws", "rack_a": "ws"}).note == ""
+    assert plan_discovery("sim", ["sim", "rack_a"], both_here, 7).note == ""
     # Said after why another agent runs it.
     moved = plan_discovery("sim", ["sim", "rack_a", "rack_b"], {"rack_a": "::1"}, 7, {"rack_a": "a", "rack_b": "b"})
     assert moved.note.startswith("agent sim is offline: agent rack_a runs the DDS discovery server; agent rack_a")
