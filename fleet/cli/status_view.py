@@ -53,7 +53,8 @@ def view_tables(view, agents: bool = True, nodes: bool = False):
             row.name,
             row.agent,
             state,
-            f"{row.running}/{row.total}",
+            # An offline agent reports nothing, and a pending robot has no nodes yet: not 0/0.
+            "-" if row.total == 0 and row.state in ("offline", "pending") else f"{row.running}/{row.total}",
             str(row.restarts),
             _generation_time(row.deployed_generation),
             pose,

@@ -90,3 +90,5 @@ def test_robots_that_report_no_nodes_get_no_empty_nodes_table(capsys):
     print_view(FleetView(agents=[], robots=[offline]), console(), agents=False, nodes=True)
     out = capsys.readouterr().out
     assert "agent rack_a does not answer" in out and "Nodes" not in out.splitlines()
+    (line,) = [line for line in out.splitlines() if line.startswith("r1 ")]
+    assert line.split()[:4] == ["r1", "rack_a", "offline", "-"]  # its nodes unknown, not 0 of 0
