@@ -501,8 +501,7 @@ class LaunchSession:
         with self._lock:
             process.popen = popen
             process.pidfd = pidfd
-            process.state = RUNNING
-            process.exit_code = None
+            process.state = RUNNING  # exit_code stays: the last exit, why it was started again
             process.started_at = time.monotonic()
             process.restart_at = None
             process.end_logged = False

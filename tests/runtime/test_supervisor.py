@@ -120,6 +120,7 @@ def test_respawn_after_sigkill_counts_restarts(prefix, write_launch, tmp_path):
             what="the node respawned after the first SIGKILL",
         )
         assert status[0].restarts == 1
+        assert status[0].exit_code == -signal.SIGKILL  # running again, and still saying why it was restarted
         assert not pid_alive(first)
         second = status[0].pid
         assert second is not None
