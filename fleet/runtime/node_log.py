@@ -49,6 +49,13 @@ def logger_of(line: str) -> str | None:
     return match.group(1) if match else None
 
 
+def routine(line: str) -> bool:
+    """Whether `line` is a node's routine log line (INFO or DEBUG), which says nothing of why its
+    process ended: a WARN or ERROR, or a line outside the log format (a traceback, argparse's
+    complaint), may."""
+    return LOG_LINE.match(line) is not None and line.startswith(("[INFO]", "[DEBUG]"))
+
+
 def belongs_to(logger: str, node_logger: str) -> bool:
     """A node's own logger and its child loggers (`robot1.controller.planner`) are the node's."""
     return logger == node_logger or logger.startswith(node_logger + ".")

@@ -31,7 +31,7 @@ from fleet.rules import STABLE_AFTER
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
-from fleet.runtime.node_log import TAIL_LINES, ProcessOutput, is_launch_logger, launch_line, logger_of
+from fleet.runtime.node_log import TAIL_LINES, ProcessOutput, is_launch_logger, launch_line, logger_of, routine
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
 BACKENDS = ("auto", "embedded", "ros2")
@@ -79,6 +79,7 @@ def default_log_dir() -> Path:
 
 
 LAST_WORDS = 300  # characters of a process's last line that a problem quotes
+WHY_LINES = 5  # the last lines of an ended process looked through for one that may say why
 
 
 def ended_problem(who: str, exit_code: int | None, restarts: int, last_line: str = "") -> str:
@@ -257,7 +258,8 @@ class LaunchSession:
             return ""
         nodes = process.spec.nodes
         who = nodes[0].name if len(nodes) == 1 and nodes[0].name else process.spec.name
-        last = process.printed(1)
+        # Its last words, if they may say why (a SIGKILLed node's last INFO line does not).
+        last = [line for line in process.printed(WHY_LINES) if not routine(line)][-1:]
         return ended_problem(who, process.exit_code, process.restarts, last[0] if last else "")
 
     def hosted_nodes(self) -> list[NodeLaunch]:

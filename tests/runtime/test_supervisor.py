@@ -180,6 +180,18 @@ def test_a_node_that_ended_says_how_how_often_and_its_last_words(prefix, write_l
     assert supervisor.ended_problem("composite-1", -9, 0) == "composite-1 was killed by SIGKILL"
 
 
+def test_a_killed_nodes_routine_last_log_line_is_not_given_as_why(prefix, write_launch, tmp_path):
+    """A node SIGKILLed said nothing of it: its last INFO line would read as the reason."""
+    prefix.add("talker", "#!/bin/sh\necho '[INFO] [1.5] [robot1.safety]: clear'\nexec sleep 100\n")
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: talker, name: safety}\n")
+    with session:
+        pid = poll(lambda: session.status()[0].pid, timeout=10, what="the talker started")
+        poll(lambda: any(": clear" in line for line in session.tail("safety")), timeout=10, what="its line")
+        os.kill(pid, signal.SIGKILL)
+        status = poll(lambda: session.status()[0], until=lambda s: s.state == "failed", timeout=10, what="it ended")
+    assert status.problem == "safety was killed by SIGKILL"
+
+
 def test_the_log_says_when_each_process_started_and_how_it_ended(prefix, write_launch, tmp_path):
     # As ros2 launch reports its processes; `fleet logs` then shows where one process of a node
     # ends and the next begins.  What the node printed (tail, status) leaves these lines out.
