@@ -28,6 +28,7 @@ def dashboard(
     import logging
     import sys
 
+    from fleet.client import fleet_status
     from fleet.dashboard.live import LiveFleet
     from fleet.dashboard.server import listen, serve, url_of
 
@@ -35,6 +36,7 @@ def dashboard(
     sock = listen(host, port)  # a port in use is bad input: said before anything else happens
     try:
         with client(connect, zenoh_config) as control:
+            fleet_status(control, fleet)  # a fleet unknown here is bad input, not an empty fleet all running
             typer.echo(f"fleet dashboard on {url_of(sock)} (Ctrl-C stops it)")
             sys.stdout.flush()
             serve(LiveFleet(control, fleet), sock)

@@ -115,10 +115,10 @@ def ros_env(
     """Print the environment that lets ROS tools see a fleet's whole graph.
 
     For ros2 topic, ros2 node, rviz2: `eval "$(fleet ros-env)"`."""
-    from fleet.client import tool_environment
+    from fleet.client import fleet_status, tool_environment
     from fleet.plan import build_view
 
-    with client(connect, zenoh_config) as control:
-        view = build_view(*control.status(fleet), time.time())
+    with client(connect, zenoh_config) as control:  # a fleet unknown here is bad input
+        view = build_view(*fleet_status(control, fleet), time.time())
     env = tool_environment(view, fleet, agent)
     typer.echo("export " + " ".join(f"{key}={value}" for key, value in env.items()))

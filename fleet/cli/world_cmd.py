@@ -95,8 +95,9 @@ def _remote_world(fleet: str | None, connect: str | None, zenoh_config: Path | N
     """One status query finds the agent running the world; that agent sends the whole state."""
     import time
 
+    from fleet.client import fleet_status
     from fleet.plan import build_view, locate_world
 
-    with client(connect, zenoh_config) as control:
-        fleet_name, agent = locate_world(build_view(*control.status(fleet), time.time()), fleet)
+    with client(connect, zenoh_config) as control:  # a fleet unknown here is bad input
+        fleet_name, agent = locate_world(build_view(*fleet_status(control, fleet), time.time()), fleet)
         return control.world(fleet_name, agent).world

@@ -84,8 +84,17 @@ def test_cli_redeploy_says_nothing_changed_and_status_exits_zero(cluster):
 def test_a_fleet_name_not_known_here_is_an_error_and_changes_nothing(cluster):
     cluster.deploy(cluster.spec())
     before = {row.name: row.pids for row in cluster.view("tiny").robots}
-    for command in (["status"], ["status", "--json"], ["status", "--watch"], ["down"]):
-        done = cluster.cli(*command, "--fleet", "tinny", "--connect", cluster.endpoint)
+    commands = (
+        ["status"],
+        ["status", "--json"],
+        ["status", "--watch"],
+        ["down"],
+        ["ros-env"],
+        ["snapshot", "-o", str(cluster.root / "never.png")],
+        ["dashboard", "--port", "0"],  # it served an empty fleet, all running
+    )
+    for command in commands:
+        done = cluster.cli(*command, "--fleet", "tinny", "--connect", cluster.endpoint, timeout=30)
         assert done.returncode == 2 and done.stdout == "", done.stdout + done.stderr  # bad input, as a robot's name
         unknown = r"fleet: error: <command line>: no fleet named 'tinny' here \(fleets: .*\btiny\b.*\)\n"
         assert re.fullmatch(unknown, done.stderr), done.stderr

@@ -186,6 +186,7 @@ def test_a_killed_nodes_routine_last_log_line_is_not_given_as_why(prefix, write_
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: talker, name: safety}\n")
     with session:
         pid = poll(lambda: session.status()[0].pid, timeout=10, what="the talker started")
+        assert pid is not None
         poll(lambda: any(": clear" in line for line in session.tail("safety")), timeout=10, what="its line")
         os.kill(pid, signal.SIGKILL)
         status = poll(lambda: session.status()[0], until=lambda s: s.state == "failed", timeout=10, what="it ended")
