@@ -138,7 +138,10 @@ def param_set(
         from fleet.errors import error_line
 
         typer.echo(error_line(f"{robot}/{node} refused {name}={_shown(new)}: {reply.reason}"), err=True)
-        raise typer.Exit(1)
+        from fleet.errors import EXIT_USAGE
+        from fleet.wire.protocol import REFUSED
+
+        raise typer.Exit(EXIT_USAGE if reply.code == REFUSED else 1)  # the value given is bad input
     kept = reply.note or "recorded on the agent"  # the note: why it is not kept across restarts
     typer.echo(f"{robot}/{node}: {name} = {_shown(reply.value)} ({kept})")
 

@@ -27,6 +27,14 @@ def _reply(ok: bool, value=None, reason: str = "", **more) -> None:
     print(json.dumps(reply), flush=True)
 
 
+def _refused() -> str:
+    """The reply code of a value the node refused (imported only then: the protocol's models cost
+    the helper's every call an import otherwise)."""
+    from fleet.wire.protocol import REFUSED
+
+    return REFUSED
+
+
 def _python_value(message):
     from rcl_interfaces.msg import ParameterType as T
 
@@ -202,16 +210,16 @@ def main(argv: list[str]) -> int:
         try:
             message = Parameter(name, value=value).to_parameter_msg()
         except Exception as error:
-            _reply(False, reason=f"value {value!r} cannot be a ROS parameter: {error}")
+            _reply(False, reason=f"value {value!r} cannot be a ROS parameter: {error}", code=_refused())
             return 0
         result = _call(node, SetParameters, f"{fqn}/set_parameters", SetParameters.Request(parameters=[message]))
         outcome = result.results[0]
         if outcome.successful:
             _reply(True, value)
         elif message.value.type != current.type:  # rclpy's reason names its enum: `expected 'Type.BOOL' got ...`
-            _reply(False, value, _type_mismatch(current.type, message.value.type))
+            _reply(False, value, _type_mismatch(current.type, message.value.type), code=_refused())
         else:
-            _reply(False, value, outcome.reason or "refused by the node")
+            _reply(False, value, outcome.reason or "refused by the node", code=_refused())
         return 0
     except TimeoutError as error:
         _reply(False, reason=str(error))

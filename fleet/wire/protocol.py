@@ -80,6 +80,7 @@ class ProtocolError(ValueError):
 # a name it cannot take): the asker's input is wrong, not the fleet.  The client's error for them
 # is a BadRequest (exit 2); every other code is a failure of the request (exit 1).
 INPUT_ERRORS = frozenset({"invalid", "not_found"})
+REFUSED = "refused"  # ParamReply.code of a value the node refused: the asker's input, said with the value
 
 
 # ---------------------------------------------------------------------------------------------
@@ -720,7 +721,9 @@ class ParamReply(Message):
     ok: bool
     value: ParamValue | None = None
     reason: str = ""
-    code: str = ""  # of a refusal: "not_found" when the node has no parameter of that name (bad input)
+    # of a refusal: "not_found" when the node has no parameter of that name, REFUSED when the node
+    # refuses the value (of another type, out of its range): both the asker's input
+    code: str = ""
     note: str = ""  # of an accepted set that is not kept across restarts, and why
     # op "list": node -> parameter -> its value (None: a type fleet does not carry, a byte array),
     # node -> the parameters set live with `fleet param set` (kept until the robot changes), and

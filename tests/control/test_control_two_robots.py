@@ -127,10 +127,10 @@ def test_set_on_robot2_restarts_only_robot2_and_reaches_the_node(two_robots):
 def test_live_parameter_set_is_checked_and_kept(two_robots):
     cluster = deployed(two_robots)
     refused = cluster.cli("param", "set", "robot1", "controller", "max_speed", "99", "--connect", cluster.endpoint)
-    assert refused.returncode != 0 and "refused" in refused.stderr, refused.stderr
+    assert refused.returncode == 2 and "refused" in refused.stderr, refused.stderr  # the value: bad input
     # A value of another type: the node's refusal in the words of a parameter file.
     mistyped = cluster.cli("param", "set", "robot1", "controller", "loop", "maybe", "--connect", cluster.endpoint)
-    assert mistyped.returncode != 0, mistyped.stdout + mistyped.stderr
+    assert mistyped.returncode == 2, mistyped.stdout + mistyped.stderr
     assert "refused loop=maybe: it holds a bool (true or false), and the value given is a string" in mistyped.stderr
     accepted = cluster.cli("param", "set", "robot1", "controller", "max_speed", "0.7", "--connect", cluster.endpoint)
     assert accepted.returncode == 0, accepted.stderr
