@@ -302,7 +302,7 @@ def _print_outcome(outcome, out) -> None:
     elif outcome.ok:
         out.print(labelled("deploy taken", "green", "(not waiting for the robots: `fleet status` shows them)"))
     elif outcome.waited and not (outcome.unreachable or outcome.refused or outcome.superseded_by):
-        out.print(labelled("not up", "red", f"waiting longer would not help; not running: {_not_running(outcome)}"))
+        out.print(labelled("not up:", "red", f"waiting longer would not help; not running: {_not_running(outcome)}"))
 
 
 def _start_agents_hint(agents: list[str], endpoint: str) -> str:
@@ -331,8 +331,9 @@ def _start_agents_hint(agents: list[str], endpoint: str) -> str:
 
 
 def _not_running(outcome) -> str:
-    stuck = [row for row in (outcome.view.robots if outcome.view else []) if row.state != "running"]
-    return "; ".join(f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in stuck)
+    return "; ".join(
+        f"{row.name} {row.state}" + (f" ({row.reason})" if row.reason else "") for row in outcome.not_running
+    )
 
 
 def diff(

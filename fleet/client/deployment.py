@@ -64,6 +64,11 @@ class Outcome:
         return {agent: r.reason for agent, r in self.replies.items() if isinstance(r, p.ApplyReply) and not r.accepted}
 
     @property
+    def not_running(self) -> list[RobotRow]:
+        """The fleet's robots not running when the deploy last looked: why a deploy is not up."""
+        return [row for row in (self.view.robots if self.view else []) if row.state != "running"]
+
+    @property
     def nothing_changed(self) -> bool:
         if self.already_applied:
             return True
@@ -91,6 +96,10 @@ class Outcome:
             if self.discovery is None
             else {"host": self.discovery.host, "server": self.discovery.server, "note": self.discovery.note},
             "agents": replies,
+            "not_running": [
+                {"name": row.name, "agent": row.agent, "state": row.state, "reason": row.reason}
+                for row in self.not_running
+            ],
             "status": self.view.to_json() if self.view else None,
         }
 

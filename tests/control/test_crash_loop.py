@@ -39,6 +39,11 @@ def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_dep
     assert not outcome["timed_out"] and took < 100, f"waited {took:.0f} s for a robot that cannot come up"
     robots = rows(outcome["status"])
     assert robots["robot1"]["state"] == "running", robots["robot1"]
+    # Why it failed, at the top of the JSON as the table's "not up:" line says it.
+    (stuck,) = outcome["not_running"]
+    assert (stuck["name"], stuck["agent"], stuck["state"]) == ("robot2", "hostA", "degraded") and REFUSAL in stuck[
+        "reason"
+    ]
     robot2 = robots["robot2"]
     assert robot2["state"] == "degraded" and REFUSAL in robot2["reason"], robot2
     if isolation == "process":
