@@ -34,6 +34,7 @@ def certs(
     from fleet.wire import certificates as c
     from fleet.wire import protocol as p
     from fleet.wire import security
+    from fleet.wire.session import host_problem
 
     expansion = load_and_expand(spec, [])
     agents = sorted(set(expansion.spec.agents) | {bundle.agent for bundle in expansion.bundles})
@@ -42,6 +43,9 @@ def certs(
         if problem or name in agents or name == security.ROUTER:
             why = problem or "is the name of an agent or the router"
             raise FleetError(f"--operator {name!r}: {why}")
+    for address in router_address:  # it goes into the router's certificate, for agents to check
+        if problem := host_problem(address):
+            raise FleetError(f"--router-address: {problem}")
     if out.exists() and not out.is_dir():
         raise FleetError(f"{out}: not a directory")
 

@@ -68,15 +68,25 @@ def endpoint_problem(endpoint: str) -> str | None:
         return None  # unix sockets, serial lines, ...: Zenoh checks its own
     if not port.isdigit() or int(port) > 65535:
         return f"endpoint {endpoint!r} has no port from 0 to 65535 (such as {EXAMPLE})"
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    elif ":" in host:
+        return f"endpoint {endpoint!r}: an IPv6 address goes in brackets ([{host}])"
+    problem = host_problem(host)
+    return f"endpoint {endpoint!r}: {problem}" if problem else None
+
+
+def host_problem(host: str) -> str | None:
+    """Why `host` is not a host name, an IPv4 or an IPv6 address, or None."""
     try:
-        if host.startswith("[") and host.endswith("]"):
-            ipaddress.IPv6Address(host[1:-1])
+        if ":" in host:
+            ipaddress.IPv6Address(host)
         elif re.fullmatch(r"[0-9.]+", host):
             ipaddress.IPv4Address(host)
         elif not _HOST_NAME.fullmatch(host):
-            return f"endpoint {endpoint!r}: {host!r} is not a host name or an IP address"
+            return f"{host!r} is not a host name or an IP address"
     except ValueError:
-        return f"endpoint {endpoint!r}: {host!r} is not an IP address"
+        return f"{host!r} is not an IP address"
     return None
 
 

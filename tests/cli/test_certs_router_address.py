@@ -35,3 +35,15 @@ def test_what_it_made_is_counted_as_certificates(tmp_path):
     first = certs(tmp_path / "out")
     assert "4 new certificates with their keys (ca.pem, router.pem, local.pem, operator.pem)" in first, first
     assert "no new certificate (all kept)" in certs(tmp_path / "out")
+
+
+def test_a_router_address_that_is_none_is_bad_input_and_nothing_is_made(tmp_path):
+    out = tmp_path / "certs"
+    spec = str(FLEETS / "two_robots.yaml")
+    for address in ("bad address!", "10.0.0.300"):
+        args = ["certs", spec, "-o", str(out), "--router-address", "10.0.0.1", "--router-address", address]
+        done = subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and "--router-address:" in done.stderr and address in done.stderr, done.stderr
+    assert not out.exists()
+    certs(out, "--router-address", "fd00::1")  # an IPv6 address is one (certs asserts it exits 0)
+    assert out.is_dir()
