@@ -23,6 +23,7 @@ import socket
 from pathlib import Path
 from typing import Any
 
+from pydantic import ValidationError
 from starlette.applications import Starlette
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, StreamingResponse
@@ -31,6 +32,7 @@ from starlette.staticfiles import StaticFiles
 
 from fleet.dashboard.live import LiveFleet, UnknownRobot
 from fleet.errors import BadRequest, ControlError, FleetError
+from fleet.wire.protocol import short_validation_error
 
 log = logging.getLogger("fleet.dashboard")
 
@@ -147,7 +149,9 @@ async def _answer(function, *args: Any) -> JSONResponse:
         return JSONResponse({"error": str(error)}, status_code=404)
     except ControlError as error:  # the agent or the router did not answer, or refused
         return JSONResponse({"error": str(error)}, status_code=502)
-    except ValueError as error:  # pydantic refused the request (a bad parameter name)
+    except ValidationError as error:  # pydantic refused the request (a bad parameter name): in its words
+        return JSONResponse({"error": short_validation_error(error)}, status_code=400)
+    except ValueError as error:
         return JSONResponse({"error": str(error).splitlines()[0]}, status_code=400)
 
 

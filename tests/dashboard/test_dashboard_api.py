@@ -50,3 +50,10 @@ def test_logs_of_an_unknown_robot_are_not_found_and_of_a_silent_agent_a_bad_gate
     # A node or parameter the robot does not have (the agent's refusal): not found either.
     missing = {"error": "node /robot1/controller has no parameter 'nosuch'"}
     assert get(live, "/api/param/demo/robot1/controller/nosuch") == (404, missing)
+
+
+def test_a_parameter_name_that_is_none_is_a_bad_request_in_words():
+    live = LiveFleet(SilentAgents())  # type: ignore[arg-type]
+    live._view = FleetView(agents=[], robots=[RobotRow("demo", "robot1", "sim", "local", "running")])
+    status, body = get(live, "/api/param/demo/robot1/controller/bad name")
+    assert status == 400 and body["error"].startswith("name: String should match pattern"), body
