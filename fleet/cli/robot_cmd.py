@@ -167,11 +167,11 @@ def param_list(
             {"robot": robot, "parameters": reply.parameters, "set_live": reply.set_live, "unanswered": reply.unanswered}
         )
     elif reply.parameters:  # none when every node asked for is unanswered: the errors alone say so
-        rows = table("node", "parameter", "value", "", title=f"Parameters of {robot}")
+        rows = table("node", "parameter", "value", "set live", title=f"Parameters of {robot}")
         for node_name, values in sorted(reply.parameters.items()):
             live = set(reply.set_live.get(node_name, []))
             for name, value in values.items():
-                rows.add_row(node_name, name, _shown(value), "set live" if name in live else "")
+                rows.add_row(node_name, name, _shown(value), "yes" if name in live else "")
         console().print(rows)
     if reply.unanswered:
         for node_name, why in sorted(reply.unanswered.items()):

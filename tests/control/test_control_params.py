@@ -32,17 +32,17 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     assert json.loads(got.stdout) == 0.5
 
     refused = param(cluster, "set", "robot1", "controller", "max_speed", "99")
-    assert refused.returncode != 0 and "refused" in refused.stderr, refused.stdout + refused.stderr
+    assert refused.returncode == 2 and "refused" in refused.stderr, refused.stdout + refused.stderr  # bad input
     # A negative value is the value (as with `ros2 param set`), not an unknown option: the node judges it.
     negative = param(cluster, "set", "robot1", "controller", "max_speed", "-0.5")
-    assert negative.returncode == 1, negative.stdout + negative.stderr
+    assert negative.returncode == 2, negative.stdout + negative.stderr
     assert "refused max_speed=-0.5" in negative.stderr and "out of range" in negative.stderr, negative.stderr
     # Typed as --set types it (as rcl reads a parameter file): 1e-1 is a double, not a string.
     exponent = param(cluster, "set", "robot1", "controller", "max_speed", "1e-1")
     assert exponent.returncode == 0 and exponent.stdout.startswith("robot1/controller: max_speed = 0.1 "), exponent
     # Nothing at all is an empty string, as with `ros2 param set`: the node refuses it for a double.
     empty = param(cluster, "set", "robot1", "controller", "max_speed", "")
-    assert empty.returncode == 1 and "refused max_speed='': " in empty.stderr, empty.stderr
+    assert empty.returncode == 2 and "refused max_speed='': " in empty.stderr, empty.stderr
     # Values are shown as ROS YAML writes them.
     assert param(cluster, "get", "robot1", "controller", "loop").stdout == "true\n"
     accepted = param(cluster, "set", "robot1", "controller", "max_speed", "1")  # an int for a double: coerced
@@ -69,7 +69,8 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
     assert data["set_live"] == {"controller": ["max_speed"]}
     table = param(cluster, "list", "robot1", "controller")
     row = next(line.split() for line in table.stdout.splitlines() if line.split()[1:2] == ["max_speed"])
-    assert table.returncode == 0 and row == ["controller", "max_speed", "1.0", "set", "live"], table.stdout
+    assert table.returncode == 0 and row == ["controller", "max_speed", "1.0", "yes"], table.stdout
+    assert table.stdout.splitlines()[1].split() == ["NODE", "PARAMETER", "VALUE", "SET", "LIVE"], table.stdout
     # A node or robot the fleet does not have is the user's mistake: bad input, exit 2, one line.
     for args in (["list", "robot1", "no_such_node"], ["get", "robot1", "no_such_node", "max_speed"]):
         no_node = param(cluster, *args)
