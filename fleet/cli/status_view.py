@@ -118,7 +118,7 @@ def _world_line(world):
 
     line = Text(
         f"world {world.fleet} on {world.agent}: t {world.sim_time:.1f} s, "
-        f"RTF {world.real_time_factor:.2f}, {world.robots} robots, "
+        f"RTF {world.real_time_factor:.2f}, {world.robots} robot{'' if world.robots == 1 else 's'}, "
     )
     count = world.contacts.get("count", 0)
     contacts = f"{count} contact" + ("" if count == 1 else "s")
