@@ -24,6 +24,11 @@ def render_to(tmp_path: Path, spec: Path, *extra: str) -> Path:
     return out
 
 
+def files_under(directory: Path) -> list[str]:
+    """The files in `directory` and below, by their paths relative to it."""
+    return sorted(str(path.relative_to(directory)) for path in directory.rglob("*") if path.is_file())
+
+
 def test_render_over_an_earlier_render_leaves_only_the_new_files(tmp_path):
     """Robots gone from the spec and formats no longer asked for leave no file behind; what
     others put in the directory stays, and the list cannot be made to remove files outside it."""
@@ -37,7 +42,7 @@ def test_render_over_an_earlier_render_leaves_only_the_new_files(tmp_path):
     spec = tmp_path / "three.yaml"
     spec.write_text((FLEETS / "two_robots.yaml").read_text().replace("name: robot2", "name: robot3"))
     render_to(tmp_path, spec, "--format", "yaml")
-    files = sorted(str(path.relative_to(out)) for path in out.rglob("*") if path.is_file())
+    files = files_under(out)
     assert files == [
         ".fleet-render",
         "README",
@@ -169,11 +174,11 @@ def test_a_render_that_fails_half_way_lists_what_it_left_and_the_next_removes_it
     monkeypatch.undo()
     assert line.endswith(f"cannot write {calls[-1]}: No space left on device")
     header, *listed = (out / ".fleet-render").read_text().splitlines()
-    on_disk = {str(path.relative_to(out)) for path in out.rglob("*") if path.is_file()}
+    on_disk = set(files_under(out))
     assert header.startswith("# written by fleet render") and len(listed) == 4
     assert set(listed) == on_disk - {".fleet-render", "robot1/notes.txt"}
     render_to(tmp_path, FLEETS / "two_robots.yaml", "--format", "yaml")
-    files = sorted(str(path.relative_to(out)) for path in out.rglob("*") if path.is_file())
+    files = files_under(out)
     assert files == [
         ".fleet-render",
         "robot1/notes.txt",
