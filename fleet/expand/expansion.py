@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 from fleet.errors import Location, SpecError, TemplateError, relative_to_cwd
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
-from fleet.expand.outline import LaunchOutline, outline
+from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.parameters import (
     INLINE_LAYER,
     Override,
@@ -29,6 +29,7 @@ from fleet.expand.python_launch import python_source
 from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference, parse_rendered, rendered_launch_path
 from fleet.expand.shared import SharedTopic, conflict
 from fleet.expand.templating import TemplateSet, argument_problem, builtin_template_dirs
+from fleet.nodes.parameters import declared
 from fleet.rules import (
     LAUNCH_SUFFIX,
     PARAMS_SUFFIX,
@@ -169,11 +170,13 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     # robots set it.
     unknown: dict[tuple[str, str, str], list[str]] = {}
     checked: set[int] = set()  # shared layers checked with a robot: the next ones check only what they changed
+    values_checked: dict[str, set[Any]] = {}  # see _check_node_values
     for plan in robots:
         layers = plan.parameters
         nodes = layers.changed if id(layers.origin) in checked else None
         check_type_stable(layers, plan.name, nodes)
         check_names_disjoint(layers, plan.name, nodes)
+        _check_node_values(plan, values_checked)
         for (node, name), warning in layers.unknown_to_template(nodes).items():
             if name not in plan.inline.get(node, {}):  # known to the launch file: warned below
                 unknown.setdefault((plan.template, node, name), []).append(warning)
@@ -191,6 +194,49 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
     warnings = sorted(_once(found) for found in unknown.values()) + _misnamed_defaults(templates, robots)
     warnings += _sim_time_without_world(spec, robots)
     return Expansion(spec=spec, robots=robots, bundles=bundles, bridge=bridge, warnings=warnings)
+
+
+def _check_node_values(plan: RobotPlan, checked: dict[str, set[Any]]) -> None:
+    """Refuse a value one of fleet's own nodes (package fleet_nodes) would refuse at start, of
+    another type than it declares or out of its range (fleet.nodes.parameters, which the nodes
+    declare), at the place the value the node gets is written: the spec, --set, the template's
+    defaults, or the launch file when it gives the parameter inline.  A node of another package
+    is left alone: fleet cannot know its parameters.
+
+    Cheap for 10,000 robots: `checked` holds, per executable, the nodes of shared layers already
+    checked and each history of a value already checked (robots share the histories of values
+    they do not change), so each value is checked once, not once per robot."""
+    layers = plan.parameters
+    for node in plan.outline.nodes:
+        specs = declared(node.package, node.executable)
+        if specs is None:
+            continue
+        inline = plan.inline.get(node.name, {})
+        for name, given in inline.items():
+            if (spec := specs.get(name)) is not None and (problem := spec.problem(given.value)) is not None:
+                raise SpecError(_refused_value(plan, node, name, problem), plan.launch_place(given.where))
+        if node.name in plan.without_file:  # none of the parameter file reaches it
+            continue
+        seen = checked.get(node.executable)
+        if seen is None:
+            seen = checked[node.executable] = set()
+        if layers.same_as_origin(node.name):
+            key = (id(layers.origin), node.name, tuple(inline))
+            if key in seen:
+                continue
+            seen.add(key)
+        for name, spec in specs.items():
+            settings = layers.history.get((node.name, name))
+            # None: the node keeps its own default; inline: the launch file's value, checked above.
+            if settings is None or id(settings) in seen or name in inline:
+                continue
+            seen.add(id(settings))  # the plans hold every history until the expansion is made
+            if (problem := spec.problem(settings[-1].value)) is not None:
+                raise SpecError(_refused_value(plan, node, name, problem), Location(settings[-1].source))
+
+
+def _refused_value(plan: RobotPlan, node: NodeOutline, name: str, problem: str) -> str:
+    return f"robot {plan.name}: {node.name}.{name} {problem} ({node.package} {node.executable} refuses it at start)"
 
 
 def _misnamed_defaults(templates: TemplateSet, robots: list[RobotPlan]) -> list[str]:

@@ -16,26 +16,12 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import BatteryState
 
-from fleet.nodes import models
-from fleet.nodes.common import ERROR, OK, WARN, FleetNode, ParamSpec, main_for, seconds
+from fleet.nodes import models, parameters
+from fleet.nodes.common import ERROR, OK, WARN, FleetNode, main_for, seconds
 
 
 class BatteryNode(FleetNode):
-    PARAMETERS = (
-        ParamSpec("capacity", 100.0, "Energy of a full battery (Wh); > 0", 0.0, 100000.0),
-        ParamSpec("initial_percentage", 1.0, "Charge at start-up (fraction 0..1)", 0.0, 1.0),
-        ParamSpec("idle_draw", 5.0, "Power drawn at all times (W)", 0.0, 10000.0),
-        ParamSpec("motion_draw", 20.0, "Extra power per m/s of odometry speed (W per m/s)", 0.0, 10000.0),
-        ParamSpec("low_threshold", 0.2, "Charge below which diagnostics warn (fraction)", 0.0, 1.0),
-        ParamSpec(
-            "critical_threshold",
-            0.05,
-            "Charge below which health is DEAD (fraction); <= low_threshold",
-            0.0,
-            1.0,
-        ),
-        ParamSpec("publish_rate", 1.0, "Rate of the battery topic (Hz of the node clock)", 0.1, 100.0),
-    )
+    PARAMETERS = parameters.BATTERY
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__("battery", **node_kwargs)

@@ -1,7 +1,8 @@
 """What every fleet node shares: parameter declaration and checking, diagnostics, and the
 run/spin/shutdown loop of an executable.
 
-A node subclasses FleetNode, lists its parameters as ParamSpecs, may add a cross-parameter
+A node subclasses FleetNode, lists its parameters as ParamSpecs (declared in the pure module
+fleet.nodes.parameters, which `fleet render` checks values by too), may add a cross-parameter
 check (validate) and a reaction to live changes (on_parameters_changed), and reports its state
 through diagnose().  run() turns node factories into a process that exits 0 when asked to stop
 and 2 with a one-line reason when its configuration is invalid.
@@ -13,17 +14,11 @@ import math
 import signal
 import sys
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
@@ -31,6 +26,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from fleet.nodes.batch_executor import BatchExecutor
+from fleet.nodes.parameters import ParamSpec
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
@@ -42,58 +38,6 @@ EXIT_INVALID_CONFIG = 2
 
 class ParameterError(Exception):
     """A parameter given at start-up is unusable; the message says which and why."""
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """One declared parameter.  Its ROS type follows the default's Python type."""
-
-    name: str
-    default: Any
-    description: str
-    low: float | int | None = None  # inclusive bounds, enforced by the descriptor
-    high: float | int | None = None
-
-    def descriptor(self) -> ParameterDescriptor:
-        param_type = Parameter.Type.from_parameter_value(self.default)
-        descriptor = ParameterDescriptor(name=self.name, type=param_type.value, description=self.description)
-        # Bounds come in pairs (low and high, or neither).
-        if self.low is not None and self.high is not None and param_type == Parameter.Type.DOUBLE:
-            descriptor.floating_point_range = [
-                FloatingPointRange(from_value=float(self.low), to_value=float(self.high), step=0.0)
-            ]
-        elif self.low is not None and self.high is not None and param_type == Parameter.Type.INTEGER:
-            descriptor.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=0)]
-        return descriptor
-
-    def coerce(self, value: Any) -> Any:
-        """Integers where doubles are declared become doubles.
-
-        YAML and command lines write `max_speed: 1` as an integer, and rcl would refuse it for a
-        double parameter with a type error people find baffling; the value is unambiguous.
-        """
-        if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
-            return float(value)
-        if (
-            isinstance(self.default, list)
-            and self.default
-            and isinstance(self.default[0], float)
-            and isinstance(value, (list, tuple))
-            and value
-            and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
-        ):
-            return [float(v) for v in value]
-        return value
-
-    def explain(self, value: Any) -> str:
-        """Why value was refused, in words a user can act on."""
-        expected = Parameter.Type.from_parameter_value(self.default).name.lower()
-        given = Parameter.Type.from_parameter_value(value).name.lower()
-        if given != expected:
-            return f"parameter '{self.name}' must be of type {expected}, got {given} {value!r}"
-        if self.low is not None and not (self.low <= value <= self.high):  # also catches NaN
-            return f"parameter '{self.name}' = {value!r} is out of range {self.low} .. {self.high}"
-        return f"parameter '{self.name}' = {value!r} refused"
 
 
 class FleetNode(Node):

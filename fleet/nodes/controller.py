@@ -17,23 +17,12 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import BatteryState
 
-from fleet.nodes import models
-from fleet.nodes.common import ERROR, OK, WARN, FleetNode, ParamSpec, main_for
+from fleet.nodes import models, parameters
+from fleet.nodes.common import ERROR, OK, WARN, FleetNode, main_for
 
 
 class ControllerNode(FleetNode):
-    PARAMETERS = (
-        ParamSpec(
-            "waypoints",
-            [2.0, 0.0, 2.0, 2.0, 0.0, 2.0, 0.0, 0.0],
-            "Route as a flat list of x,y pairs in the odometry frame (m); even length >= 2",
-        ),
-        ParamSpec("loop", True, "After the last waypoint start again at the first (else stop)"),
-        ParamSpec("max_speed", 0.5, "Forward speed limit (m/s)", 0.0, 5.0),
-        ParamSpec("max_turn_rate", 1.5, "Turn rate limit (rad/s)", 0.0, 10.0),
-        ParamSpec("goal_tolerance", 0.15, "Distance at which a waypoint counts as reached (m)", 0.01, 5.0),
-        ParamSpec("control_rate", 20.0, "Control loop rate (Hz of the node clock)", 1.0, 200.0),
-    )
+    PARAMETERS = parameters.CONTROLLER
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__("controller", **node_kwargs)

@@ -18,18 +18,14 @@ from geometry_msgs.msg import Twist
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
 
-from fleet.nodes import models
-from fleet.nodes.common import ERROR, OK, WARN, FleetNode, ParamSpec, main_for, seconds
+from fleet.nodes import models, parameters
+from fleet.nodes.common import ERROR, OK, WARN, FleetNode, main_for, seconds
 
 WATCHDOG_PERIOD = 0.05  # s: how late a scan timeout may be noticed
 
 
 class SafetyNode(FleetNode):
-    PARAMETERS = (
-        ParamSpec("safety_distance", 0.4, "Block forward motion closer than this (m)", 0.0, 10.0),
-        ParamSpec("scan_half_angle", 0.6, "Half width of the forward cone checked (rad)", 0.0, 3.1416),
-        ParamSpec("scan_timeout", 1.0, "Zero output when no scan came for this long (s)", 0.05, 60.0),
-    )
+    PARAMETERS = parameters.SAFETY
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__("safety", **node_kwargs)

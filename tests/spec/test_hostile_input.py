@@ -105,7 +105,9 @@ def test_a_spec_that_renders_fine_with_a_world(tmp_path, capsys):
         "fleet: demo\nworld:\n  obstacles: [{name: crate, type: box, position: [1, 0], size: [1, 1, 1]}]\n"
         "robots:\n  - name: r1\n    pose: {x: 0.25}\n  - name: r2\n    pose: {x: -0.2}\n"
         "    namespace: /" + "/".join(["abcdefghi"] * 20) + "\n"
-        "    parameters: {controller: {max_speed: 9.0e+300}, battery: {capacity: 9223372036854775807.0}}\n"
+        # The nodes' own ranges' edges, and values near rcl's limits for parameters they do not declare.
+        "    parameters: {controller: {max_speed: 5.0, gain: 9.0e+300}, "
+        "battery: {capacity: 100000.0, charge: 9223372036854775807.0}}\n"
         "    launch_args: {enable_safety: 'false', log_level: DEBUG}\n"
         "  - {name: r3, pose: {x: 9}, lidar: {range_min: 0.5, range_max: 0.6}}\n"
     )
