@@ -1,4 +1,4 @@
-"""fleets/two_robots.yaml with robot2's controller refusing its max_speed at every start, over the
+"""fleets/two_robots.yaml with robot2's controller refusing its waypoints at every start, over the
 control plane with real nodes and the world: the deploy stops waiting for robot2 and fails, and
 status says it is `degraded` and why (the node, its exit, its restarts, its own words), whichever
 isolation runs it.  A deploy that does not wait is ok once taken, and exits 0."""
@@ -14,7 +14,10 @@ from fleet.testing.poll import poll
 
 pytestmark = pytest.mark.integration
 
-REFUSAL = "parameter 'max_speed' = 9.0 is out of range 0.0 .. 5.0"  # fleet/nodes/common.py's words
+# fleet/nodes/models.py's words.  A value out of a declared range would not do: render refuses it
+# (the controller's own declarations, fleet/nodes/parameters.py); one that only the node's check
+# of its parameters together refuses reaches the node.
+REFUSAL = "waypoints must be x,y pairs (even length >= 2), got 3 values"
 
 
 def rows(document: dict) -> dict[str, dict]:
@@ -27,7 +30,7 @@ def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_dep
     refused = [
         str(cluster.two_robots_on_host_a(isolation)),
         "--set",
-        "robot2.controller.max_speed=9.0",
+        "robot2.controller.waypoints=[1.0, 2.0, 3.0]",
         "--connect",
         cluster.endpoint,
     ]
