@@ -13,10 +13,11 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from fleet.runtime.ament import PACKAGE
+
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor
 
-PACKAGE = "fleet_nodes"
 # rclpy.node.Node.PARAM_REL_TOL: a double this close to a bound counts as on it.
 PARAM_REL_TOL = 1e-6
 
