@@ -307,5 +307,7 @@ def test_robots_driving_into_each_other_show_as_contacts_and_in_a_snapshot(bump,
     assert width > 300 and height > 300 and picture.stat().st_size > 20_000
     print(f"snapshot over zenoh: {time.monotonic() - started:.2f} s, {picture.stat().st_size} bytes")
 
+    # A fleet not deployed here is bad input, naming those that are.
     other = cluster.cli("snapshot", "--fleet", "other", "-o", str(tmp_path / "o.png"), *connect)
-    assert other.returncode == 1 and "fleet other runs no world" in other.stderr, other.stderr
+    assert other.returncode == 2 and "no fleet named 'other' here (fleets: bump)" in other.stderr, other.stderr
+    assert not (tmp_path / "o.png").exists()
