@@ -370,3 +370,43 @@ def _ros_option_problem(option: str, value: str) -> str | None:
     if option in ("-e", "--enclave") and not value.startswith("/"):
         return f"{option} {value!r}: an enclave is an absolute name such as /fleet/robot1"
     return None
+
+
+# ---------------------------------------------------------------------------------------------
+# ROS parameter types
+
+
+def ros_type(value: object) -> str:
+    """The ROS parameter type of a Python value, as rclpy names it
+    (rclpy.Parameter.Type.from_parameter_value(value).name.lower())."""
+    if value is None:
+        return "not_set"
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int):
+        return "integer"
+    if isinstance(value, float):
+        return "double"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, (list, tuple)):
+        # rclpy tries bytes, bool, int, float and str in turn; a list's first item rules out the
+        # others (an empty list is all of them: bytes first).
+        for item_type, name in _ARRAY_TYPES if not value else _ARRAY_TYPES_OF.get(type(value[0]), _ARRAY_TYPES):
+            if all(isinstance(item, item_type) for item in value):
+                return name
+    return type(value).__name__
+
+
+_ARRAY_TYPES = (
+    (bytes, "byte_array"),
+    (bool, "bool_array"),
+    (int, "integer_array"),
+    (float, "double_array"),
+    (str, "string_array"),
+)
+# A list's first item's type -> the array types it can be, in rclpy's order (True is an int too).
+_ARRAY_TYPES_OF = {
+    item_type: tuple(entry for entry in _ARRAY_TYPES if issubclass(item_type, entry[0]))
+    for item_type in (bytes, bool, int, float, str)
+}

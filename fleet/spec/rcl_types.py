@@ -23,6 +23,8 @@ import math
 import re
 import sys
 
+from fleet.rules import ros_type
+
 RclValue = bool | int | float | str
 
 _TRUE = frozenset({"y", "Y", "yes", "Yes", "YES", "true", "True", "TRUE", "on", "On", "ON"})
@@ -119,20 +121,10 @@ def sequence_problem(values: list[RclValue]) -> str | None:
     """Why rcl refuses a list of parameter values, or None (one type throughout, not empty)."""
     if not values:
         return "an empty list has no type for rcl (the parameter would not be set)"
-    kinds = {_kind(value) for value in values}
+    kinds = {ros_type(value) for value in values}
     if len(kinds) > 1:
         return f"a list must hold one type for rcl, got {' and '.join(sorted(kinds))} values"
     return None
-
-
-def _kind(value: RclValue) -> str:
-    if isinstance(value, bool):
-        return "bool"
-    if isinstance(value, int):
-        return "integer"
-    if isinstance(value, float):
-        return "double"
-    return "string"
 
 
 # A string shown as it is: words of ordinary characters between single spaces, the lone "-" (a

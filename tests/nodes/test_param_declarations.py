@@ -18,6 +18,7 @@ from fleet.nodes.battery import BatteryNode  # noqa: E402
 from fleet.nodes.common import ParameterError  # noqa: E402
 from fleet.nodes.controller import ControllerNode  # noqa: E402
 from fleet.nodes.safety import SafetyNode  # noqa: E402
+from fleet.rules import ros_type  # noqa: E402
 
 NODES = [(ControllerNode, parameters.CONTROLLER), (BatteryNode, parameters.BATTERY), (SafetyNode, parameters.SAFETY)]
 
@@ -68,6 +69,6 @@ def test_types_are_named_as_rclpy_names_them(value):
     except TypeError:
         expected = None
     if expected is not None:
-        assert parameters.ros_type(value) == expected
+        assert ros_type(value) == expected
     else:
-        assert parameters.ros_type(value) == type(value).__name__
+        assert ros_type(value) == type(value).__name__
