@@ -381,7 +381,7 @@ class Agent:
             if (
                 held is not None
                 and request.generation == held_generation
-                and held.request.content_digest() != request.content_digest()
+                and held.content_digest != request.content_digest()
             ):
                 reply.reason = f"generation {held_generation} was already applied with other content"
                 return reply
