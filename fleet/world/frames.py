@@ -40,11 +40,40 @@ def _set(msg, path: str, value) -> None:
     setattr(msg, leaf, value)
 
 
+# The bytes a field is set to while its offset is looked for, by dtype (the first byte varies with
+# the field): unlikely anywhere else in a message, and none of them zero (see _offset).
+_MARKER_BYTES = {
+    "f4": bytes([0x56, 0x9A, 0x44]),  # about 1,234.8
+    "f8": bytes([0x43, 0xFA, 0xED, 0xD6, 0x1C, 0xF8, 0x40]),  # about 98,765.4
+    "i4": bytes([0x3C, 0x5A, 0x5A]),
+    "u4": bytes([0x3C, 0x5A, 0x5A]),
+}
+
+
 def _marker(dtype: str, k: int):
-    """A value whose bytes are unlikely to occur anywhere else in a message."""
-    if dtype in ("i4", "u4"):
-        return 0x5A3C0000 + 0x101 * (k + 1)
-    return 1234.5 + 0.0625 * (k + 1) if dtype == "f4" else 98765.4321 + 1.0e-3 * (k + 1)
+    """The marker value of field k."""
+    return np.frombuffer(bytes([0x11 + k]) + _MARKER_BYTES[dtype], dtype="<" + dtype)[0].item()
+
+
+def _offset(marked: bytes, field: Field, k: int) -> int:
+    """Where `field` (the k-th) starts in `marked`, a message serialized with every field set to its
+    marker: the one place, aligned as CDR aligns the field, that holds the whole field's marker.
+
+    CDR's padding holds whatever the serializer's memory held before, once an earlier message's
+    marker: a string's terminating NUL followed by three such bytes read as a float32 marker
+    ending in a zero byte, and a robot's scans were written over its header.  An aligned place
+    that takes in padding also takes in the byte before it, a NUL, which no marker has."""
+    item = np.dtype("<" + field.dtype)
+    needle = np.full(field.count, _marker(field.dtype, k), dtype=item).tobytes()
+    found = []
+    at = marked.find(needle)
+    while at >= 0:
+        if (at - _HEADER) % item.itemsize == 0:
+            found.append(at)
+        at = marked.find(needle, at + 1)
+    if len(found) != 1:
+        raise ValueError(f"cannot locate field {field.path}: {len(found)} places hold its marker")
+    return found[0]
 
 
 class SerializedFrames:
@@ -59,15 +88,11 @@ class SerializedFrames:
                 value = _marker(field.dtype, k)
                 _set(probe, field.path, [value] * field.count if field.count > 1 else value)
             marked = serialize_message(probe)
-            found = {}
-            for k, field in enumerate(fields):
-                needle = np.array([_marker(field.dtype, k)], dtype="<" + field.dtype).tobytes()
-                at = marked.find(needle)
-                if at < 0 or (field.count == 1 and marked.find(needle, at + 1) >= 0):
-                    raise ValueError(f"cannot locate field {field.path} in {type(template).__name__}")
-                found[field.path] = at
+            try:
+                offsets.append({field.path: _offset(marked, field, k) for k, field in enumerate(fields)})
+            except ValueError as error:
+                raise ValueError(f"{type(template).__name__}: {error}") from None
             blobs.append(serialize_message(template))
-            offsets.append(found)
         starts, position = [], _HEADER
         for blob in blobs:
             starts.append(position)

@@ -3,12 +3,15 @@
 Compared as messages and by length, not byte for byte: CDR's alignment padding is whatever was
 in the serializer's memory (seen differing between two serializations in a long test run)."""
 
+import struct
+
 import numpy as np
 import pytest
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan
 
+from fleet.world import frames as frames_module
 from fleet.world.description import LidarSpec, RobotSpec
 from fleet.world.frames import Field, SerializedFrames
 from fleet.world.ros_bridge import odom_template, scan_template
@@ -65,3 +68,34 @@ def test_scan_ranges_written_in_place_match_rclpy_serialization():
 def test_a_field_the_message_does_not_have_is_refused():
     with pytest.raises(AttributeError):
         SerializedFrames([odom_template(RobotSpec("r1", "/r1"))], (Field("pose.pose.position.q", "f8"),))
+
+
+def test_padding_that_holds_part_of_a_marker_is_not_taken_for_the_field(monkeypatch):
+    """CDR padding holds whatever the serializer's memory held before.  Seen live (a robot
+    respawned after the world restarted): the frame id's terminating NUL and the three padding
+    bytes after it, left holding an earlier message's marker, were taken for the ranges, and
+    every scan of that robot was written over its own header and could not be read."""
+    frame_id = "robot2/base_scan"  # 16 characters: its NUL ends at an odd place, 3 bytes of padding follow
+
+    def serialize_leaving_marker_bytes_in_padding(message):
+        data = bytearray(serialize_message(message))
+        if message.ranges[0] != 0.0:  # the probe, its ranges set to their marker
+            after_nul = data.index(frame_id.encode()) + len(frame_id) + 1
+            data[after_nul : after_nul + 3] = struct.pack("<f", message.ranges[0])[1:]
+        return bytes(data)
+
+    monkeypatch.setattr(frames_module, "serialize_message", serialize_leaving_marker_bytes_in_padding)
+    spec = RobotSpec("robot2", "/robot2", lidar=LidarSpec(beams=7))
+    frames = SerializedFrames([scan_template(spec)], (Field("header.stamp.sec", "i4"), Field("ranges", "f4", 7)))
+    ranges = np.array([[0.5, np.inf, 1.0, 2.0, 3.0, 4.0, 7.25]], dtype=np.float32)
+    frames.write("ranges", np.array([0]), ranges)
+    expected = scan_template(spec)
+    expected.ranges = ranges[0].tolist()
+    assert same(frames.messages(np.array([0]))[0], expected)
+
+
+def test_no_marker_has_a_zero_byte():
+    """A zero byte would let a string's NUL stand for a marker's first byte (previous test)."""
+    for dtype in ("f4", "f8", "i4", "u4"):
+        for k in range(16):
+            assert 0 not in np.array([frames_module._marker(dtype, k)], dtype="<" + dtype).tobytes()
