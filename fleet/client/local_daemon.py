@@ -91,8 +91,9 @@ def start(
         configs = _options(pid, "--zenoh-config")
         configured = Path(configs[0]) if configs else None
         changes = []
+        # Started again for any reason, it keeps the agents it runs (the robots they ran come back).
+        names = daemon_agents([*runs, *missing])
         if missing:
-            names = daemon_agents([*runs, *missing])
             changes.append(f"with agents {', '.join(names)}")
         if listen is not None and listen != listened:
             changes.append(f"on {listen} (it listened on {listened})")

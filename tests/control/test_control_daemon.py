@@ -118,6 +118,24 @@ def test_up_with_agents_runs_a_spec_for_several_computers_on_this_one(fresh_clus
         )
         assert {(r["name"], r["agent"]) for r in status["robots"]} == {("robot1", "rack_a"), ("robot2", "rack_b")}
         assert {a["name"] for a in status["agents"] if a["online"]} == {"local", "rack_a", "rack_b", "rack_c"}
+
+        # Started again elsewhere, it keeps its agents (it used to come back with `local` alone,
+        # and rack_a's and rack_b's robots offline).
+        moved = f"tcp/127.0.0.1:{free_tcp_port()}"
+        elsewhere = cluster.cli("up", "--listen", moved, env=env)
+        assert elsewhere.returncode == 0, elsewhere.stdout + elsewhere.stderr
+        assert f"on {moved} with agents local, rack_a, rack_b, rack_c" in elsewhere.stdout
+        wait_processes_gone([pid], 10)
+        pid = running_pid(state)
+        assert pid is not None
+        env["FLEET_CONNECT"] = moved
+        status = poll(
+            lambda: json.loads(cluster.cli("status", "--json", env=env).stdout),
+            until=lambda status: {r["state"] for r in status["robots"]} == {"running"},
+            timeout=30,
+            what="the fleet running again on the daemon started elsewhere",
+        )
+        assert {a["name"] for a in status["agents"] if a["online"]} == {"local", "rack_a", "rack_b", "rack_c"}
         node_pids = {node["pid"] for r in status["robots"] for node in r["nodes"]}
         assert all(psutil.Process(p).ppid() == pid for p in node_pids)
 
