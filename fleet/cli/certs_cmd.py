@@ -64,9 +64,12 @@ def certs(
             c.issue(out, member, days=days)
             made.append(c.cert_path(out, member.name).name)
 
-    configs = {security.config_path(out, security.ROUTER): security.router_config(out, agents, list(operator))}
+    # Operators made by an earlier run keep their access: a run names only those it adds.
+    earlier = [name for name in security.configured_members(out, "operator") if name not in agents]
+    operators = sorted({*operator, *earlier})
+    configs = {security.config_path(out, security.ROUTER): security.router_config(out, agents, operators)}
     configs |= {security.config_path(out, "agent", name): security.member_config(out, name) for name in agents}
-    configs |= {security.config_path(out, "operator", name): security.member_config(out, name) for name in operator}
+    configs |= {security.config_path(out, "operator", name): security.member_config(out, name) for name in operators}
     for path, config in configs.items():
         security.write_config(path, config)
 

@@ -106,5 +106,10 @@ def config_path(directory: Path, role: str, name: str = "") -> Path:
     return directory / (f"{role}-{name}.json5" if name else f"{role}.json5")
 
 
+def configured_members(directory: Path, role: str) -> list[str]:
+    """The names that have a config of `role` in `directory` (config_path's files)."""
+    return sorted(path.name[len(role) + 1 : -len(".json5")] for path in directory.glob(f"{role}-*.json5"))
+
+
 def write_config(path: Path, config: dict) -> None:
     path.write_text(json.dumps(config, indent=2) + "\n")

@@ -1,8 +1,9 @@
-"""`fleet certs` says when the router's certificate names only this computer: agents elsewhere,
-which dial the router by another address, could not verify it and would not connect."""
+"""`fleet certs`: what it says of the router's certificate (agents elsewhere, which dial the router by
+another address, could not verify one naming only this computer) and which members it lets in."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -47,3 +48,15 @@ def test_a_router_address_that_is_none_is_bad_input_and_nothing_is_made(tmp_path
     assert not out.exists()
     certs(out, "--router-address", "fd00::1")  # an IPv6 address is one (certs asserts it exits 0)
     assert out.is_dir()
+
+
+def test_a_run_for_another_operator_keeps_the_earlier_operators_access(tmp_path):
+    """The router's rules used to name only the operators of the last run: `--operator alice`
+    locked out `operator`, whose certificate and config were still there."""
+    out = tmp_path / "certs"
+    certs(out)
+    certs(out, "--operator", "alice")
+    router = json.loads((out / "router.json5").read_text())
+    names = {name for subject in router["access_control"]["subjects"] for name in subject.get("cert_common_names", [])}
+    assert {"operator", "alice"} <= names
+    assert (out / "operator-operator.json5").exists() and (out / "operator-alice.json5").exists()
