@@ -15,6 +15,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from fleet import rules
+from fleet.errors import FleetError, Location
 from fleet.files import write_atomic
 from fleet.wire.protocol import ApplyRequest
 
@@ -56,9 +57,15 @@ class AgentStore:
         self.root.mkdir(parents=True, exist_ok=True)
         marker = rules.agent_marker_file(self.root)
         if marker.exists():
-            owner = json.loads(marker.read_text()).get("name")
+            try:
+                owner = json.loads(marker.read_text()).get("name")
+            except (OSError, ValueError, AttributeError) as error:
+                raise FleetError(f"not an agent's marker file ({error})", Location(marker)) from None
             if owner != self.agent:
-                raise RuntimeError(f"state directory {self.root} belongs to agent {owner!r}, not {self.agent!r}")
+                raise FleetError(
+                    f"--state-dir {self.root}: the state directory of agent {owner!r}, not {self.agent!r} "
+                    "(each agent needs a state directory of its own)"
+                )
         else:
             write_atomic(marker, json.dumps({"name": self.agent}), durable=True)
 

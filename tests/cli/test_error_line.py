@@ -225,3 +225,14 @@ def test_up_refuses_an_endpoint_this_computer_cannot_listen_on(capsys, monkeypat
     line = one_error_line(capsys, ["up", "--listen", endpoint])
     assert line.startswith(f"fleet: error: --listen: endpoint '{endpoint}'") and expected in line, line
     assert list(tmp_path.iterdir()) == []  # no daemon was started
+
+
+def test_an_agent_given_another_agents_state_directory_is_bad_input(capsys, tmp_path):
+    """It was a RuntimeError's traceback."""
+    state = tmp_path / "state"
+    state.mkdir()
+    (state / "agent.json").write_text('{"name": "local"}')
+    args = ["agent", "--name", "other", "--state-dir", str(state), "--connect", "tcp/127.0.0.1:1"]
+    assert "the state directory of agent 'local', not 'other'" in one_error_line(capsys, args)
+    (state / "agent.json").write_text("[")
+    assert f"{state / 'agent.json'}: not an agent's marker file" in one_error_line(capsys, args)

@@ -7,6 +7,7 @@ import json
 import pytest
 import yaml
 
+from fleet.errors import FleetError
 from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
 from fleet.server.units import with_overrides
@@ -273,7 +274,7 @@ def test_desired_state_is_persisted_atomically_and_restored(tmp_path):
     assert fleets == {"two_robots": state}
     assert len(problems) == 1 and "broken.json" in problems[0]
     assert not [path for path in store.desired_dir.iterdir() if path.name.startswith(".")]  # no temporaries
-    with pytest.raises(RuntimeError, match="belongs to agent"):
+    with pytest.raises(FleetError, match="the state directory of agent 'hostA', not 'hostB'"):
         AgentStore(tmp_path / "state", "hostB").claim()
 
 
