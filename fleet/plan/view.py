@@ -463,8 +463,8 @@ def locate_world(view: FleetView, fleet: str | None = None) -> tuple[str, str]:
 
     rows = [row for row in view.robots if row.kind == "world" and (fleet is None or row.fleet == fleet)]
     if not rows:
-        if fleet:
-            raise ControlError(f"fleet {fleet} runs no world (not deployed here, or its spec has no world)")
+        if fleet:  # named, deployed (an unknown --fleet is refused before) and without a world: bad input
+            raise FleetError(f"fleet {fleet} runs no world (its spec has none)")
         raise ControlError("no fleet with a world is deployed (see `fleet status`)")
     if len(rows) > 1:
         raise FleetError(f"several fleets run a world ({', '.join(row.fleet for row in rows)}): pick one with --fleet")

@@ -191,8 +191,9 @@ def test_locate_world_says_why_there_is_none_to_ask():
     assert locate_world(build_view([agent_status()], [], 0.0)) == ("bump", "hostB")
     with pytest.raises(ControlError, match="no fleet with a world"):
         locate_world(build_view([agent_status(robots=("robot1",))], [], 0.0))
-    with pytest.raises(ControlError, match="fleet other runs no world"):
+    with pytest.raises(FleetError, match="fleet other runs no world") as named:
         locate_world(build_view([agent_status()], [], 0.0), "other")
+    assert named.value.exit_code == 2  # named something that is not there, as the agent's not_found
     two = build_view([agent_status(), agent_status(fleet="other", agent="hostC")], [], 0.0)
     with pytest.raises(FleetError, match="several fleets run a world"):
         locate_world(two)
