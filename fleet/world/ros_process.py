@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from fleet.errors import EXIT_FAILURE, FleetError
-from fleet.lifetime import die_with_parent
+from fleet.lifetime import helper_of_parent
 from fleet.world.description import ObstacleSpec, RobotSpec
 from fleet.world.inputs import RobotInputs
 
@@ -62,7 +62,7 @@ class RosProcess:
             pass_fds=[theirs.fileno()],
             # Dead with the world even when the world is SIGKILLed (its supervisor's own exit does
             # that): reading the closed socket and closing rclpy would outlive it by seconds.
-            preexec_fn=die_with_parent,
+            preexec_fn=helper_of_parent,
         )
         theirs.close()
         self._conn = Connection(ours.detach())
@@ -209,8 +209,7 @@ def serve(conn: Connection, ros_args: list[str]) -> None:
 
 
 def main(argv: list[str]) -> int:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the physics process says when to stop
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # the physics process says when to stop (SIGINT: helper_of_parent)
     logging.basicConfig(level=logging.INFO, format="[world] %(levelname)s: %(message)s")
     conn = Connection(int(argv[0]))
     try:

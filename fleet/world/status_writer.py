@@ -16,14 +16,13 @@ import contextlib
 import pickle
 import queue
 import select
-import signal
 import subprocess
 import sys
 import threading
 from pathlib import Path
 from typing import Any
 
-from fleet.lifetime import die_with_parent
+from fleet.lifetime import helper_of_parent
 from fleet.world.status import finish_status, write_status
 
 
@@ -35,8 +34,9 @@ class StatusWriter:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             # Dead with the world even when the world is SIGKILLed: a writer still starting up
-            # (slow under load) would otherwise outlive it until it reads the closed pipe.
-            preexec_fn=die_with_parent,
+            # (slow under load) would otherwise outlive it until it reads the closed pipe.  Deaf to
+            # Ctrl-C, which reaches the world's whole process group: the world stops, then closes the pipe.
+            preexec_fn=helper_of_parent,
         )
         self._in_flight = False
         self._outgoing: queue.Queue[bytes | None] = queue.Queue()
@@ -85,8 +85,6 @@ class StatusWriter:
 
 
 def main(path: str) -> None:
-    # Ctrl-C reaches the world's whole process group: the world stops, then closes the pipe.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     source, ack = sys.stdin.buffer, sys.stdout.buffer
     while True:
         try:

@@ -3,6 +3,8 @@
 import contextlib
 import json
 import math
+import os
+import signal
 import subprocess
 import sys
 
@@ -38,6 +40,22 @@ def test_writer_writes_the_finished_document_and_ends_when_closed(tmp_path):
     finally:
         writer.close()
     assert json.loads(path.read_text())["sim_time"] == 2.0  # the status in flight was written first
+    assert writer._child.poll() == 0
+
+
+def test_a_ctrl_c_while_the_writer_starts_does_not_reach_it(tmp_path):
+    """Ctrl-C reaches the world's whole process group; the world stops the writer itself.  One in
+    the writer's first moments, before its Python had set SIGINT aside, ended it (a traceback
+    from its imports)."""
+    path = tmp_path / "status.json"
+    writer = StatusWriter(path)
+    try:
+        os.kill(writer._child.pid, signal.SIGINT)  # at once: its Python is still starting
+        assert writer.submit(parts(1.0))
+        writer.settle()
+        assert json.loads(path.read_text())["sim_time"] == 1.0
+    finally:
+        writer.close()
     assert writer._child.poll() == 0
 
 
