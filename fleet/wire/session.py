@@ -273,6 +273,15 @@ def router_config(listen: list[str], user_config: Path | None = None):
     return config
 
 
+def router_listens(listen: list[str], user_config: Path | None = None) -> list[str]:
+    """The endpoints a router opened with these arguments listens on (the config file's when
+    `listen` is empty), for its log."""
+    endpoints = json.loads(router_config(listen, user_config).get_json("listen/endpoints"))
+    if isinstance(endpoints, dict):  # Zenoh's per-mode form, {router: [...], peer: [...]}
+        endpoints = endpoints.get("router", [])
+    return [str(endpoint) for endpoint in endpoints]
+
+
 def client_config(
     connect: list[str], user_config: Path | None = None, lease_ms: int | None = None, settings: dict | None = None
 ):

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from fleet.errors import FleetError
-from fleet.wire.session import client_config, router_config
+from fleet.wire.session import client_config, router_config, router_listens
 from tests.checkout import FLEETS, run_fleet
 
 
@@ -65,3 +65,13 @@ def test_a_missing_certificate_is_named_at_the_config_that_names_it(tmp_path):
     assert error.value.line() == (
         f"fleet: error: {config_file}: {tmp_path / 'ca.pem'}: cannot read certificate: No such file or directory"
     )
+
+
+def test_the_router_names_the_endpoints_it_listens_on_from_its_config_file(tmp_path):
+    """Its log said `router listening on ` with nothing after it when only the file named them."""
+    config_file = tmp_path / "router.json5"
+    config_file.write_text('{listen: {endpoints: ["tcp/127.0.0.1:17481"]}}')
+    assert router_listens([], config_file) == ["tcp/127.0.0.1:17481"]
+    config_file.write_text('{listen: {endpoints: {router: ["tcp/127.0.0.1:17482"], peer: []}}}')
+    assert router_listens([], config_file) == ["tcp/127.0.0.1:17482"]
+    assert router_listens(["tcp/127.0.0.1:17483"], config_file) == ["tcp/127.0.0.1:17483"]
