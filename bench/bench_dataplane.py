@@ -44,6 +44,7 @@ import psutil
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench.bytecode import compile_checkout
+from bench.dataplane_peer import ODOM_RATE
 from bench.machine import machine_description
 from fleet.dataplane.discovery import server_command, server_environment
 from fleet.runtime.environment import discovery_server_port, ros_environment
@@ -210,7 +211,7 @@ class ZenohSetup(Setup):
 RECEIVERS = {1: 1, 100: 4}  # robots -> receiving processes (a robot's data goes to its own processes)
 
 
-def flow(setup: Setup, robots: int, seconds: float) -> dict:
+def flow(setup: Setup, robots: int, seconds: float, odom_rate: int = ODOM_RATE) -> dict:
     setup.prepare(robots)
     started = time.monotonic()
     share = robots // RECEIVERS[robots]
@@ -224,7 +225,10 @@ def flow(setup: Setup, robots: int, seconds: float) -> dict:
         for first in range(0, robots, share)
     ]
     sender = subprocess.Popen(
-        setup.side("b", "send", str(robots), str(seconds)), env=setup.env_b, stdout=subprocess.PIPE, text=True
+        setup.side("b", "send", str(robots), str(seconds), "0", str(odom_rate)),
+        env=setup.env_b,
+        stdout=subprocess.PIPE,
+        text=True,
     )
     sent_out, _ = sender.communicate(timeout=seconds + 120)
     sent = json.loads(sent_out.strip().splitlines()[-1])
@@ -348,6 +352,7 @@ def main() -> int:
     parser.add_argument("--robots", type=int, action="append", choices=sorted(RECEIVERS), help="flow sizes")
     parser.add_argument("--bridge-from", type=Path, help="run the bridges and router of this checkout")
     parser.add_argument("--latency-pairs", type=int, help="only one robot's latency, dds then zenoh, N times")
+    parser.add_argument("--odom-rate", type=int, default=ODOM_RATE, help="the latency pairs' odometry rate (Hz)")
     args = parser.parse_args()
     compile_checkout()
     if args.bridge_from:
@@ -358,7 +363,7 @@ def main() -> int:
         return 2
     if args.latency_pairs:
         output = args.output.with_name("dataplane_latency.md") if args.output.name == "dataplane.md" else args.output
-        return latency_pairs(args.latency_pairs, args.seconds, args.bridge_from, output)
+        return latency_pairs(args.latency_pairs, args.seconds, args.odom_rate, args.bridge_from, output)
     sizes = args.robots or sorted(RECEIVERS)
     setups = (("one computer", False), ("two computers (veth)", True), ("two computers, zenoh", True))
     rows_flow, rows_discovery, rows_rtf = [], [], []
@@ -414,7 +419,7 @@ def main() -> int:
     return 0
 
 
-def latency_pairs(pairs: int, seconds: float, bridge_from: Path | None, output: Path) -> int:
+def latency_pairs(pairs: int, seconds: float, odom_rate: int, bridge_from: Path | None, output: Path) -> int:
     """One robot's odometry across the veth link, `dds` then `zenoh`, `pairs` times: what the
     zenoh transport adds at p50, pair by pair."""
     rows = []
@@ -428,7 +433,7 @@ def latency_pairs(pairs: int, seconds: float, bridge_from: Path | None, output: 
             ):
                 setup = make()
                 try:
-                    p50s.append(flow(setup, 1, seconds)["p50"])
+                    p50s.append(flow(setup, 1, seconds, odom_rate)["p50"])
                 finally:
                     setup.close()
             rows.append((p50s[0], p50s[1]))
@@ -440,7 +445,7 @@ def latency_pairs(pairs: int, seconds: float, bridge_from: Path | None, output: 
         f"Machine: {machine_description()}.",
         f"Command: `.venv/bin/python bench/bench_dataplane.py {' '.join(sys.argv[1:])}`.",
         "",
-        f"One robot's odometry (50 Hz, reliable) from one computer to the other for {seconds:g} s,",
+        f"One robot's odometry ({odom_rate} Hz, reliable) from one computer to the other for {seconds:g} s,",
         "over `dds` and then over `zenoh`, in turn; one-way p50 in ms.",
         "",
         "| pair | dds p50 | zenoh p50 | zenoh adds |",

@@ -1,6 +1,6 @@
 """One side of a data-plane benchmark, run as its own process (in a network namespace or not).
 
-    python bench/dataplane_peer.py send ROBOTS SECONDS [FIRST]     # /rK/odom (50 Hz, reliable), /rK/scan (10 Hz, best effort)
+    python bench/dataplane_peer.py send ROBOTS SECONDS [FIRST [RATE]]  # /rK/odom (RATE Hz, default 50, reliable), /rK/scan (10 Hz, best effort)
     python bench/dataplane_peer.py receive ROBOTS SECONDS [FIRST [PREFIX]]  # prints one JSON line: latencies and counts
     python bench/dataplane_peer.py participant K SECONDS           # a robot's participant for the discovery benchmark
     python bench/dataplane_peer.py observe ROBOTS SECONDS          # prints the wall time when it matched every robot
@@ -48,7 +48,7 @@ def stamped(template: bytearray) -> bytes:
     return bytes(template)
 
 
-def send(node, robots: range, seconds: float) -> None:
+def send(node, robots: range, seconds: float, odom_rate: int = ODOM_RATE) -> None:
     odom = [node.create_publisher(Odometry, f"/r{k}/odom", RELIABLE) for k in robots]
     scan = [node.create_publisher(LaserScan, f"/r{k}/scan", BEST_EFFORT) for k in robots]
     deadline = time.monotonic() + MATCH_TIMEOUT
@@ -63,13 +63,13 @@ def send(node, robots: range, seconds: float) -> None:
     begin = time.monotonic()
     end = begin + seconds
     sent = {"odom": 0, "scan": 0}
-    tick, period = 0, 1.0 / ODOM_RATE
+    tick, period = 0, 1.0 / odom_rate
     next_time = time.monotonic()
     while time.monotonic() < end:
         for pub in odom:
             pub.publish(stamped(o))
         sent["odom"] += len(odom)
-        if tick % (ODOM_RATE // SCAN_RATE) == 0:
+        if tick % (odom_rate // SCAN_RATE) == 0:
             for pub in scan:
                 pub.publish(stamped(s))
             sent["scan"] += len(scan)
@@ -143,10 +143,12 @@ def main(argv: list[str]) -> int:
     try:
         if role == "participant":
             participant(node, number, seconds)
-        elif role == "receive" and len(argv) > 4:
-            receive(node, range(first, first + number), seconds, argv[4])
+        elif role == "receive":
+            receive(node, range(first, first + number), seconds, *argv[4:5])
+        elif role == "send":
+            send(node, range(first, first + number), seconds, *(int(rate) for rate in argv[4:5]))
         else:
-            {"send": send, "receive": receive, "observe": observe}[role](node, range(first, first + number), seconds)
+            observe(node, range(first, first + number), seconds)
     except ExternalShutdownException:  # SIGTERM: the benchmark is done with this process
         pass
     finally:
