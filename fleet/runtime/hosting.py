@@ -48,19 +48,28 @@ def node_key(node: NodeLaunch) -> str:
     return node.name or node.executable
 
 
+def node_logger(node: NodeLaunch) -> str:
+    """The rcutils logger of a hosted node, by which its lines are filed in its log."""
+    return logger_name(node.fqn or node.executable)
+
+
 def place(occupancy: list[int], group_size: int) -> int | None:
     """Index of the first host with room for one more robot (None: all are full)."""
     return next((index for index, robots in enumerate(occupancy) if robots < group_size), None)
 
 
 def add_request(robot: str, nodes: list[NodeLaunch]) -> dict[str, Any]:
-    """The host request adding `robot`: each node with exactly its own ROS arguments."""
+    """The host request adding `robot`: each node with exactly its own ROS arguments, and the
+    logger the host is to say things about it under (a node it cannot make has none of its own)."""
     return {
         "op": "add",
         "robot": robot,
         "respawn": any(node.respawn for node in nodes),
         "respawn_delay": max((node.respawn_delay for node in nodes), default=0.0),
-        "nodes": [{"executable": node.executable, "ros_args": node.ros_arguments} for node in nodes],
+        "nodes": [
+            {"executable": node.executable, "ros_args": node.ros_arguments, "logger": node_logger(node)}
+            for node in nodes
+        ],
     }
 
 
@@ -86,7 +95,7 @@ class HostedRobot:
         self.nodes = nodes
         log_dir.mkdir(parents=True, exist_ok=True)
         self.outputs = {node_key(node): ProcessOutput(log_dir / f"{node_key(node)}.log") for node in nodes}
-        self.loggers = {logger_name(node.fqn or node.executable): self.outputs[node_key(node)] for node in nodes}
+        self.loggers = {node_logger(node): self.outputs[node_key(node)] for node in nodes}
         self.added = False  # by the current host process
         self.state = STARTING
         self.error = ""
