@@ -42,6 +42,13 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any
 
+# What a robot's failure needs, imported at start-up, before any robot runs: a failure is carried
+# out on the executor thread, where a first import stalls every robot of the host (importing
+# fleet.runtime.supervisor there took 0.28 s, pydantic and all: the neighbours' cmd_vel stopped
+# past the world's command timeout).  fleet.rules is the standard library only, so this costs
+# the host's start-up nothing (rclpy, which does cost, still waits for main).
+from fleet.rules import STABLE_AFTER, backoff_delay
+
 PROGRAM = "host"
 WAIT = 0.2  # s: longest the executor waits before looking at requests and due restarts again
 # s: a robot that failed is made again no sooner than this after the host started.  Nodes made
@@ -235,9 +242,6 @@ class Host:
         self.after_failure(robot)
 
     def after_failure(self, robot: HostedRobot) -> None:
-        from fleet.rules import STABLE_AFTER
-        from fleet.runtime.supervisor import backoff_delay
-
         if not robot.respawn:
             robot.state = "failed"
             return

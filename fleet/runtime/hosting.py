@@ -27,11 +27,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
+from fleet.rules import backoff_delay
 from fleet.runtime import ament
 from fleet.runtime.launch_file import NodeLaunch
 from fleet.runtime.node_log import LOG_FORMAT, ProcessOutput, belongs_to, logger_name, logger_of
 from fleet.runtime.processes import group_exists, signal_group, spawn, stop_all
-from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, backoff_delay, ended_problem
+from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, ended_problem
 
 HOST_MODULE = "fleet.nodes.host"
 CONNECT_TIMEOUT = 60.0  # s: rclpy start-up of a host on a loaded machine
