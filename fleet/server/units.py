@@ -255,6 +255,15 @@ class Unit:
             )
         return None
 
+    def not_running(self) -> dict[str, str]:
+        """Its nodes whose process does not run now (named as node_states names them), each with
+        why: its state and how its process ended (`backoff: controller exited with code 2 ...`)."""
+        return {
+            _wire(node).name: f"{node.state}: {node.problem}" if node.problem else node.state
+            for node in self._node_statuses()
+            if node.state != RUNNING
+        }
+
     def node_names(self) -> list[str]:
         return [state.name for state in self.node_states()]
 
