@@ -18,7 +18,7 @@ from fleet.files import write_atomic
 from fleet.launchfile.reader import read_launch_file
 from fleet.rules import PARAMS_SUFFIX, WORLD_STATUS_FILE, unit_log_dir
 from fleet.runtime.launch_file import check_bundle_launch
-from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, LaunchSession, NodeStatus
+from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, STARTING, LaunchSession, NodeStatus
 from fleet.spec.rcl_types import value_text
 from fleet.spec.yaml_source import safe_load
 from fleet.wire.protocol import (
@@ -257,11 +257,12 @@ class Unit:
 
     def not_running(self) -> dict[str, str]:
         """Its nodes whose process does not run now (named as node_states names them), each with
-        why: its state and how its process ended (`backoff: controller exited with code 2 ...`)."""
+        why: its state and how its process ended (`backoff: controller exited with code 2 ...`).
+        A node still starting is not among them: its services are about to be there."""
         return {
             _wire(node).name: f"{node.state}: {node.problem}" if node.problem else node.state
             for node in self._node_statuses()
-            if node.state != RUNNING
+            if node.state not in (RUNNING, STARTING)
         }
 
     def node_names(self) -> list[str]:
