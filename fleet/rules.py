@@ -53,7 +53,8 @@ def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
     if failures_in_row <= 1:
         return respawn_delay
     base = max(respawn_delay, MIN_BACKOFF)
-    return min(max(MAX_BACKOFF, respawn_delay), base * 2.0 ** (failures_in_row - 1))
+    # The exponent capped: 2.0 ** 1024 overflows, after some 8 hours of a node failing at once.
+    return min(max(MAX_BACKOFF, respawn_delay), base * 2.0 ** min(failures_in_row - 1, 64))
 
 
 def daemon_agents(extra: list[str] | tuple[str, ...] = ()) -> list[str]:

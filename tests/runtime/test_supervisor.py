@@ -226,6 +226,7 @@ def test_backoff_grows_exponentially():
     assert backoff_delay(0.0, 2) == MIN_BACKOFF * 2
     assert backoff_delay(1.0, 20) == MAX_BACKOFF
     assert backoff_delay(60.0, 5) == 60.0
+    assert backoff_delay(1.0, 5000) == MAX_BACKOFF  # a node failing at once for hours: no overflow
 
 
 def test_exit_without_respawn_is_final(prefix, write_launch, tmp_path):
