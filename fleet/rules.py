@@ -1,4 +1,4 @@
-"""Rules shared by every stage: names, reserved names, file names, the state directory's layout.
+"""Rules shared by every stage: names, reserved names, file names, the state directory's layout, respawns.
 
 Robot names become ROS namespaces, agent and fleet names become Zenoh key parts and file names.
 Dependency-free (the standard library only), so the spec, the wire protocol, the agent and the
@@ -42,6 +42,19 @@ LOCAL_AGENT = "local"
 # A node process that ran this long is healthy again: the runner's respawn backoff starts over,
 # and a deploy counts a respawned node as up only from then on.
 STABLE_AFTER = 10.0
+MIN_BACKOFF = 0.25  # base of the exponential backoff when respawn_delay is 0
+MAX_BACKOFF = 30.0
+
+
+def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
+    """How long a node that failed waits to be started again, in the runner's processes and in a
+    host alike: the first respawn waits respawn_delay (as launch does); each further quick failure
+    doubles the wait, up to MAX_BACKOFF (or respawn_delay if that is larger)."""
+    if failures_in_row <= 1:
+        return respawn_delay
+    base = max(respawn_delay, MIN_BACKOFF)
+    # The exponent capped: 2.0 ** 1024 overflows, after some 8 hours of a node failing at once.
+    return min(max(MAX_BACKOFF, respawn_delay), base * 2.0 ** min(failures_in_row - 1, 64))
 
 
 def daemon_agents(extra: list[str] | tuple[str, ...] = ()) -> list[str]:

@@ -135,13 +135,14 @@ def param_set(
     new = _parse_value(value)
     reply = _param(robot, node, name, "set", new, fleet, connect, zenoh_config)
     if not reply.ok:
-        from fleet.errors import error_line
-
-        typer.echo(error_line(f"{robot}/{node} refused {name}={_shown(new)}: {reply.reason}"), err=True)
-        from fleet.errors import EXIT_USAGE
+        from fleet.errors import EXIT_USAGE, error_line
         from fleet.wire.protocol import REFUSED
 
-        raise typer.Exit(EXIT_USAGE if reply.code == REFUSED else 1)  # the value given is bad input
+        if reply.code == REFUSED:  # the node answered no: the value given is bad input
+            typer.echo(error_line(f"{robot}/{node} refused {name}={_shown(new)}: {reply.reason}"), err=True)
+            raise typer.Exit(EXIT_USAGE)
+        typer.echo(error_line(reply.reason), err=True)  # no answer: the node is not running, say
+        raise typer.Exit(1)
     kept = reply.note or "recorded on the agent"  # the note: why it is not kept across restarts
     typer.echo(f"{robot}/{node}: {name} = {_shown(reply.value)} ({kept})")
 
@@ -174,6 +175,11 @@ def param_list(
                 rows.add_row(node_name, name, _shown(value), "yes" if name in live else "")
         console().print(rows)
     if reply.unanswered:
-        for node_name, why in sorted(reply.unanswered.items()):
-            typer.echo(error_line(f"{robot}/{node_name}: {why}"), err=True)
+        # One line for the nodes that did not answer for one reason (those of a process that is
+        # not running): `robot2/controller+battery: not running (...)`, as `fleet logs` labels them.
+        silent: dict[str, list[str]] = {}
+        for node_name, why in reply.unanswered.items():  # in the robot's order of its nodes
+            silent.setdefault(why, []).append(node_name)
+        for why, names in silent.items():
+            typer.echo(error_line(f"{robot}/{'+'.join(names)}: {why}"), err=True)
         raise typer.Exit(1)

@@ -6,7 +6,8 @@ carries JSON lines, one request and one reply each (`{"ok": true, ...}` or `{"ok
 "error": "..."}`); a malformed request gets an error reply and changes nothing:
 
     {"op": "add", "robot": R, "respawn": true, "respawn_delay": 1.0,
-     "nodes": [{"executable": "controller", "ros_args": ["--ros-args", "-r", "__ns:=/r1", ...]}]}
+     "nodes": [{"executable": "controller", "ros_args": ["--ros-args", "-r", "__ns:=/r1", ...],
+                "logger": "r1.controller"}]}
                                 -> nodes it cannot create: {"ok": false, "error", "state"}
                                    (backoff: tried again; failed: respawn is off)
     {"op": "remove", "robot": R}
@@ -16,6 +17,9 @@ carries JSON lines, one request and one reply each (`{"ok": true, ...}` or `{"ok
 
 Each node is created as composite does (its own cli_args, no global arguments), so names,
 namespaces, parameter files, -p values and remappings are exactly those of a process of its own.
+The agent files the host's output by the logger that printed each line, so every line the host
+writes about a robot's node is logged under that node's logger: the "logger" of its add request
+when the node could not even be made.
 A robot's fault stays its own: an exception escaping a callback of one of its nodes is caught
 here, logged with that node's logger (so it lands in that robot's node log), and that robot's
 nodes alone are destroyed and created again after a backoff, counting a restart for it.
@@ -31,13 +35,19 @@ import os
 import queue
 import signal
 import socket
-import sys
 import threading
 import time
 import traceback
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any
+
+# What a robot's failure needs, imported at start-up, before any robot runs: a failure is carried
+# out on the executor thread, where a first import stalls every robot of the host (importing
+# fleet.runtime.supervisor there took 0.28 s, pydantic and all: the neighbours' cmd_vel stopped
+# past the world's command timeout).  fleet.rules is the standard library only, so this costs
+# the host's start-up nothing (rclpy, which does cost, still waits for main).
+from fleet.rules import STABLE_AFTER, backoff_delay
 
 PROGRAM = "host"
 WAIT = 0.2  # s: longest the executor waits before looking at requests and due restarts again
@@ -56,7 +66,7 @@ class RequestError(ValueError):
 @dataclass
 class HostedRobot:
     name: str
-    nodes: list[tuple[str, list[str]]]  # (executable, ros arguments)
+    nodes: list[tuple[str, list[str], str]]  # (executable, ros arguments, its logger's name)
     respawn: bool = True
     respawn_delay: float = 1.0
     live: list[Any] = field(default_factory=list)  # its rclpy nodes while it runs
@@ -95,6 +105,8 @@ def parse_request(line: bytes) -> dict[str, Any]:
             arguments = node.get("ros_args")
             if not isinstance(arguments, list) or not all(isinstance(a, str) for a in arguments):
                 raise RequestError('each node needs "ros_args": a list of strings')
+            if not isinstance(node.get("logger"), str) or not node["logger"]:
+                raise RequestError('each node needs "logger": the name of its logger')
         delay = request.get("respawn_delay", 1.0)
         if not isinstance(delay, (int, float)) or isinstance(delay, bool) or delay < 0:
             raise RequestError('"respawn_delay" must be a number of seconds >= 0')
@@ -158,7 +170,7 @@ class Host:
                 raise RequestError(f"robot {name!r} is here already (remove it first)")
             robot = HostedRobot(
                 name=name,
-                nodes=[(node["executable"], list(node["ros_args"])) for node in request["nodes"]],
+                nodes=[(node["executable"], list(node["ros_args"]), node["logger"]) for node in request["nodes"]],
                 respawn=bool(request.get("respawn", True)),
                 respawn_delay=float(request.get("respawn_delay", 1.0)),
             )
@@ -188,20 +200,25 @@ class Host:
     # -- a robot's nodes --
 
     def create(self, robot: HostedRobot) -> None:
+        import rclpy.logging
+
         from fleet.nodes.composite import _create
 
-        try:
-            for executable, ros_args in robot.nodes:
+        for executable, ros_args, logger in robot.nodes:
+            try:
                 node = _create(executable, ros_args)
                 robot.live.append(node)
                 self.owner[id(node)] = robot.name
                 self.executor.add_node(node)
-        except Exception as error:  # a bad configuration fails this robot, not the host
-            robot.error = " ".join(str(error).split()) or type(error).__name__
-            print(f"{PROGRAM}: robot {robot.name}: cannot create its nodes: {robot.error}", file=sys.stderr, flush=True)
-            self.destroy(robot)
-            self.after_failure(robot)
-            return
+            except Exception as error:  # a bad configuration fails this robot, not the host
+                robot.error = " ".join(str(error).split()) or type(error).__name__
+                # Under the node's logger, by which the agent files the line: a line naming no
+                # logger lands in the log of whichever node printed last, maybe another robot's.
+                message = f"{PROGRAM}: cannot create the nodes of robot {robot.name}: {robot.error}"
+                rclpy.logging.get_logger(logger).error(message)
+                self.destroy(robot)
+                self.after_failure(robot)
+                return
         robot.state = "running"
         robot.error = ""
         robot.started_at = time.monotonic()
@@ -213,7 +230,7 @@ class Host:
             try:
                 node.destroy_node()
             except Exception as error:  # half-built or already broken: it is gone either way
-                print(f"{PROGRAM}: robot {robot.name}: destroying a node: {error}", file=sys.stderr, flush=True)
+                node.get_logger().error(f"{PROGRAM}: destroying this node of robot {robot.name}: {error}")
         robot.live = []
 
     def fault(self, robot: HostedRobot, node: Any, error: BaseException) -> None:
@@ -225,9 +242,6 @@ class Host:
         self.after_failure(robot)
 
     def after_failure(self, robot: HostedRobot) -> None:
-        from fleet.rules import STABLE_AFTER
-        from fleet.runtime.supervisor import backoff_delay
-
         if not robot.respawn:
             robot.state = "failed"
             return
@@ -255,7 +269,7 @@ class Host:
     def callback_failed(self, node: Any, raised: BaseException) -> None:
         robot_name = self.owner.get(id(node))
         if robot_name is None:  # a node destroyed a moment ago: nobody to restart
-            print(f"{PROGRAM}: exception in a callback of no live robot: {raised!r}", file=sys.stderr, flush=True)
+            node.get_logger().error(f"{PROGRAM}: exception in a callback of no live robot: {raised!r}")
             return
         self.fault(self.robots[robot_name], node, raised)
 

@@ -27,11 +27,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
+from fleet.rules import backoff_delay
 from fleet.runtime import ament
 from fleet.runtime.launch_file import NodeLaunch
 from fleet.runtime.node_log import LOG_FORMAT, ProcessOutput, belongs_to, logger_name, logger_of
 from fleet.runtime.processes import group_exists, signal_group, spawn, stop_all
-from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, backoff_delay, ended_problem
+from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, ended_problem
 
 HOST_MODULE = "fleet.nodes.host"
 CONNECT_TIMEOUT = 60.0  # s: rclpy start-up of a host on a loaded machine
@@ -48,19 +49,28 @@ def node_key(node: NodeLaunch) -> str:
     return node.name or node.executable
 
 
+def node_logger(node: NodeLaunch) -> str:
+    """The rcutils logger of a hosted node, by which its lines are filed in its log."""
+    return logger_name(node.fqn or node.executable)
+
+
 def place(occupancy: list[int], group_size: int) -> int | None:
     """Index of the first host with room for one more robot (None: all are full)."""
     return next((index for index, robots in enumerate(occupancy) if robots < group_size), None)
 
 
 def add_request(robot: str, nodes: list[NodeLaunch]) -> dict[str, Any]:
-    """The host request adding `robot`: each node with exactly its own ROS arguments."""
+    """The host request adding `robot`: each node with exactly its own ROS arguments, and the
+    logger the host is to say things about it under (a node it cannot make has none of its own)."""
     return {
         "op": "add",
         "robot": robot,
         "respawn": any(node.respawn for node in nodes),
         "respawn_delay": max((node.respawn_delay for node in nodes), default=0.0),
-        "nodes": [{"executable": node.executable, "ros_args": node.ros_arguments} for node in nodes],
+        "nodes": [
+            {"executable": node.executable, "ros_args": node.ros_arguments, "logger": node_logger(node)}
+            for node in nodes
+        ],
     }
 
 
@@ -86,7 +96,7 @@ class HostedRobot:
         self.nodes = nodes
         log_dir.mkdir(parents=True, exist_ok=True)
         self.outputs = {node_key(node): ProcessOutput(log_dir / f"{node_key(node)}.log") for node in nodes}
-        self.loggers = {logger_name(node.fqn or node.executable): self.outputs[node_key(node)] for node in nodes}
+        self.loggers = {node_logger(node): self.outputs[node_key(node)] for node in nodes}
         self.added = False  # by the current host process
         self.state = STARTING
         self.error = ""

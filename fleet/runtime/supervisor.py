@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
-from fleet.rules import STABLE_AFTER
+from fleet.rules import STABLE_AFTER, backoff_delay
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
@@ -35,8 +35,6 @@ from fleet.runtime.node_log import TAIL_LINES, ProcessOutput, is_launch_logger, 
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
 BACKENDS = ("auto", "embedded", "ros2")
-MIN_BACKOFF = 0.25  # base of the exponential backoff when respawn_delay is 0
-MAX_BACKOFF = 30.0
 POLL_INTERVAL = 0.05  # while stopping: a process group has no fd to wait on, so it is polled
 SESSION = ""  # on_line's process name for the session's own lines (they name what they are about)
 
@@ -101,15 +99,6 @@ def ended_problem(who: str, exit_code: int | None, restarts: int, last_line: str
     if last_line:
         text += f": {last_line[:LAST_WORDS]}"
     return text
-
-
-def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
-    """The first respawn waits respawn_delay (as launch does); each further quick failure
-    doubles the wait, up to MAX_BACKOFF (or respawn_delay if that is larger)."""
-    if failures_in_row <= 1:
-        return respawn_delay
-    base = max(respawn_delay, MIN_BACKOFF)
-    return min(max(MAX_BACKOFF, respawn_delay), base * 2 ** (failures_in_row - 1))
 
 
 class _Supervised:

@@ -900,8 +900,15 @@ class Agent:
         }
         if request.node and not nodes:
             raise _no_such_node(request.robot, request.node, unit)
+        # A node whose process does not run now (in backoff, failed) is answered for at once: its
+        # parameter services would be waited for in vain, for up to PARAM_TIMEOUT.
+        not_running = unit.not_running()
+        down = {fqn: why for fqn, name in nodes.items() if (why := not_running.get(name))}
         if request.op == "list":
-            reply = self._list_parameters(request, nodes, unit.env)
+            reply = self._list_parameters(request, nodes, down, unit.env)
+        elif down:
+            fqn, why = next(iter(down.items()))
+            reply = p.ParamReply(ok=False, reason=f"{request.robot}/{nodes[fqn]} is not running ({why})")
         else:
             fqn = next(iter(nodes))
             reply = call_parameter_service([fqn], request, unit.env)
@@ -914,11 +921,16 @@ class Agent:
                     self._record_override(request, fqn, reply.value)
         yield p.param_key(request.fleet, self.name), p.encode(reply)
 
-    def _list_parameters(self, request: p.ParamRequest, nodes: dict[str, str], env: dict[str, str]) -> p.ParamReply:
-        """Every parameter of the nodes (fqn -> node name), named by node, and those set live."""
-        reply = call_parameter_service(sorted(nodes), request, env)
+    def _list_parameters(
+        self, request: p.ParamRequest, nodes: dict[str, str], down: dict[str, str], env: dict[str, str]
+    ) -> p.ParamReply:
+        """Every parameter of the nodes (fqn -> node name), named by node, and those set live; the
+        nodes `down` (fqn -> why) are not asked, and said not to run."""
+        running = sorted(fqn for fqn in nodes if fqn not in down)
+        reply = call_parameter_service(running, request, env) if running else p.ParamReply(ok=True)
         reply.parameters = {nodes[fqn]: values for fqn, values in reply.parameters.items() if fqn in nodes}
         reply.unanswered = {nodes[fqn]: why for fqn, why in reply.unanswered.items() if fqn in nodes}
+        reply.unanswered.update({nodes[fqn]: f"not running ({why})" for fqn, why in down.items()})
         with self._lock:
             state = self._fleets.get(request.fleet)
             live = dict(state.overrides.get(request.robot, {})) if state else {}

@@ -18,7 +18,7 @@ from fleet.files import write_atomic
 from fleet.launchfile.reader import read_launch_file
 from fleet.rules import PARAMS_SUFFIX, WORLD_STATUS_FILE, unit_log_dir
 from fleet.runtime.launch_file import check_bundle_launch
-from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, LaunchSession, NodeStatus
+from fleet.runtime.supervisor import BACKOFF, EXITED, FAILED, RUNNING, STARTING, LaunchSession, NodeStatus
 from fleet.spec.rcl_types import value_text
 from fleet.spec.yaml_source import safe_load
 from fleet.wire.protocol import (
@@ -254,6 +254,16 @@ class Unit:
                 f"({_file_place(without_file[node])}), so a restart brings the node's own default back"
             )
         return None
+
+    def not_running(self) -> dict[str, str]:
+        """Its nodes whose process does not run now (named as node_states names them), each with
+        why: its state and how its process ended (`backoff: controller exited with code 2 ...`).
+        A node still starting is not among them: its services are about to be there."""
+        return {
+            _wire(node).name: f"{node.state}: {node.problem}" if node.problem else node.state
+            for node in self._node_statuses()
+            if node.state not in (RUNNING, STARTING)
+        }
 
     def node_names(self) -> list[str]:
         return [state.name for state in self.node_states()]

@@ -74,13 +74,23 @@ def test_values_are_printed_as_ros_yaml_writes_them(fleet, capsys):
 
 
 def test_an_empty_value_is_an_empty_string_and_a_refusal_shows_it(fleet, capsys):
-    fleet.reply = p.ParamReply(ok=False, reason="Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'")
+    fleet.reply = p.ParamReply(
+        ok=False, reason="Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'", code=p.REFUSED
+    )
     code, _, stderr = run_cli(["param", "set", "robot1", "controller", "max_speed", ""], capsys)
     assert fleet.requests[-1].value == ""
-    assert code == 1 and stderr == (
+    assert code == 2 and stderr == (
         "fleet: error: robot1/controller refused max_speed='': "
         "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'\n"
     )
+
+
+def test_a_set_the_node_did_not_answer_is_no_refusal(fleet, capsys):
+    """`refused` is a node's answer; a node that is not running (or did not answer) refused nothing."""
+    reason = "robot1/controller is not running (backoff: controller exited with code 2 (restarted 3 times))"
+    fleet.reply = p.ParamReply(ok=False, reason=reason)
+    code, out, stderr = run_cli(["param", "set", "robot1", "controller", "max_speed", "0.5"], capsys)
+    assert (code, out, stderr) == (1, "", f"fleet: error: {reason}\n")
 
 
 @pytest.mark.parametrize(
@@ -111,3 +121,12 @@ def test_list_of_a_node_that_does_not_answer_is_its_error_alone(fleet, capsys):
     fleet.reply = p.ParamReply(ok=True, parameters={"battery": {"capacity": 50.0}}, unanswered={"controller": "gone"})
     code, out, stderr = run_cli(["param", "list", "robot1"], capsys)
     assert code == 1 and "capacity" in out and stderr == "fleet: error: robot1/controller: gone\n"
+
+
+def test_list_says_once_why_the_nodes_of_a_process_that_is_not_running_did_not_answer(fleet, capsys):
+    """A robot's hosted (or composed) nodes stop together, for one reason: one line for them."""
+    why = "not running (backoff: its hosted nodes stopped (restarted 8 times): /robot1/controller: no)"
+    fleet.reply = p.ParamReply(ok=True, unanswered={"controller": why, "battery": why, "safety": "gone"})
+    code, out, stderr = run_cli(["param", "list", "robot1"], capsys)
+    assert (code, out) == (1, "")
+    assert stderr == f"fleet: error: robot1/controller+battery: {why}\nfleet: error: robot1/safety: gone\n"

@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 from fleet.nodes.host import Host
+from fleet.runtime.hosting import host_environment
 
 
 def test_one_wait_serves_every_callback_ready_together(ros):
@@ -53,3 +60,22 @@ def test_a_robot_failing_in_a_young_host_is_made_again_only_once_the_host_is_a_f
         assert older.restart_at is not None and older.restart_at - asked < 1.0
     finally:
         host.executor.shutdown()
+
+
+def test_a_robots_failure_and_restart_import_nothing(ros_env, tmp_path):
+    """The host's executor thread carries out a robot's failure: whatever it waits for, every other
+    robot of the host waits for.  Its first failure imported fleet.rules and fleet.runtime.supervisor
+    there (0.28 s): the neighbours' cmd_vel stopped for longer than the world's command timeout.
+    A host imports at start-up all that a robot's failure and restart need."""
+    with tempfile.TemporaryDirectory(prefix="fleet-host-") as sockets:  # a Unix socket path is short
+        done = subprocess.run(
+            [sys.executable, "-m", "tests.nodes.failing_host", str(Path(sockets) / "host.sock")],
+            cwd=Path(__file__).parents[2],
+            env=host_environment(os.environ, tmp_path),
+            capture_output=True,
+            text=True,
+            timeout=90,
+        )
+    assert done.returncode == 0, done.stderr[-3000:]
+    imported = json.loads(done.stdout.splitlines()[-1])
+    assert imported == [], f"a robot's failure imported {imported}"

@@ -10,6 +10,7 @@ import socket
 import pytest
 
 from fleet.runtime.hosting import HostPool
+from fleet.runtime.node_log import logger_of
 from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.hosting import start_hosted_robot
 from fleet.testing.poll import poll
@@ -159,6 +160,53 @@ def test_robots_share_hosts_and_a_fault_stays_with_its_robot(ros_env, probe, tmp
         )
         assert states(pool)["robot2"] == after["robot2"]
         probe.wait_for_nodes({"/robot3/controller", "/robot2/controller"})
+    finally:
+        pool.stop()
+        for session in sessions:
+            session.stop()
+
+
+def test_a_hosts_lines_about_a_robots_node_land_in_that_nodes_log(ros_env, tmp_path):
+    """robot1's battery and robot2's controller cannot be made (a parameter out of range, waypoints
+    of odd length): the host says so, at each try, under the node's logger, so each line is in
+    the log of the node it is about.  It used to print them under no logger, and the agent filed
+    them under whichever node had printed last: robot2's in robot1's controller log, robot1's
+    battery's in robot1's controller log."""
+    bad = {
+        "robot1": "/robot1/battery:\n  ros__parameters:\n    capacity: -1.0\n",
+        "robot2": "/robot2/controller:\n  ros__parameters:\n    waypoints: [1.0, 2.0, 3.0]\n",
+    }
+    pool = HostPool(tmp_path / "hosts", ros_env, group_size=2)
+    sessions = []
+    try:
+        for robot, params in bad.items():
+            (tmp_path / f"{robot}.params.yaml").write_text(params)
+            path = tmp_path / f"{robot}.launch.yaml"
+            path.write_text(LAUNCH.format(robot=robot, tolerance=0.1))
+            sessions.append(start_hosted_robot(path, pool, ros_env, tmp_path / robot / "logs"))
+        assert pool.host_of("robot1") is pool.host_of("robot2")
+
+        def host_lines(robot: str, node: str) -> list[str]:
+            log = pool.log_file(robot, node)
+            assert log is not None
+            return [line for line in log.read_text().splitlines() if "host: " in line]
+
+        # Each robot is tried again after a backoff: its line comes once per try.
+        poll(
+            lambda: (host_lines("robot1", "battery"), host_lines("robot2", "controller")),
+            until=lambda found: all(len(lines) >= 2 for lines in found),
+            timeout=40,
+            what="the host's lines about each failing node, twice, in that node's log",
+        )
+        for robot, node in (("robot1", "battery"), ("robot2", "controller")):
+            for line in host_lines(robot, node):
+                assert logger_of(line) == f"{robot}.{node}", line
+                assert f"cannot create the nodes of robot {robot}: /{robot}/{node}: " in line, line
+        assert host_lines("robot1", "controller") == []
+        assert host_lines("robot2", "battery") == []
+        for node in ("controller", "battery"):
+            log = pool.log_file("robot1", node)
+            assert log is not None and "robot2" not in log.read_text()
     finally:
         pool.stop()
         for session in sessions:

@@ -81,6 +81,8 @@ def test_add_request_carries_each_nodes_own_arguments(prefix, tmp_path):
     assert [(n["executable"], n["ros_args"]) for n in request["nodes"]] == [
         (node.executable, node.cmd[1:]) for node in plan.nodes
     ]
+    # the host says what it has to say of a node under the logger the agent files that node's lines by
+    assert [n["logger"] for n in request["nodes"]] == [logger_name(node.fqn or node.executable) for node in plan.nodes]
     assert parse_request(json.dumps(request).encode()) == request  # the host accepts what we send
     assert host_command(tmp_path / "h.sock")[-2:] == ["--control", str(tmp_path / "h.sock")]
 
@@ -95,6 +97,7 @@ def test_add_request_carries_each_nodes_own_arguments(prefix, tmp_path):
         (b'{"op": "add", "robot": "r1", "nodes": []}', "non-empty list"),
         (b'{"op": "add", "robot": "r1", "nodes": [{"executable": "rm", "ros_args": []}]}', "executable of"),
         (b'{"op": "add", "robot": "r1", "nodes": [{"executable": "battery", "ros_args": "-r"}]}', "list of strings"),
+        (b'{"op": "add", "robot": "r1", "nodes": [{"executable": "battery", "ros_args": []}]}', '"logger"'),
         (b'{"op": "fault", "robot": "r1"}', '"node"'),
     ],
 )

@@ -15,9 +15,10 @@ from pathlib import Path
 import pytest
 
 from fleet.errors import FleetError, LaunchFileError
+from fleet.rules import MAX_BACKOFF, MIN_BACKOFF, backoff_delay
 from fleet.runtime import supervisor
 from fleet.runtime.processes import group_members
-from fleet.runtime.supervisor import LaunchSession, backoff_delay
+from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.poll import poll
 from tests.runtime.runtime_helpers import pid_alive
 
@@ -222,9 +223,10 @@ def test_backoff_grows_exponentially():
     assert backoff_delay(2.0, 2) == 4.0
     assert backoff_delay(2.0, 3) == 8.0
     assert backoff_delay(0.0, 1) == 0.0
-    assert backoff_delay(0.0, 2) == supervisor.MIN_BACKOFF * 2
-    assert backoff_delay(1.0, 20) == supervisor.MAX_BACKOFF
+    assert backoff_delay(0.0, 2) == MIN_BACKOFF * 2
+    assert backoff_delay(1.0, 20) == MAX_BACKOFF
     assert backoff_delay(60.0, 5) == 60.0
+    assert backoff_delay(1.0, 5000) == MAX_BACKOFF  # a node failing at once for hours: no overflow
 
 
 def test_exit_without_respawn_is_final(prefix, write_launch, tmp_path):

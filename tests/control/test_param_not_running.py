@@ -1,0 +1,74 @@
+"""`fleet param` on a robot whose controller keeps refusing its waypoints, so that its agent holds
+it in backoff: whichever isolation runs it, get and set fail at once, saying the node is not
+running and why, and list says it in one line for the nodes that share the reason, beside the
+parameters of those that run.  They used to wait for parameter services nobody served: 22 s for
+a get, 32 s for a set (which then said the node `refused` the value), three lines for a list."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from fleet.testing.poll import poll
+from tests.control.control_helpers import robot
+
+pytestmark = pytest.mark.integration
+
+REFUSAL = "waypoints must be x,y pairs (even length >= 2), got 3 values"  # fleet/nodes/models.py's words
+AT_ONCE = 15.0  # s: a CLI call on a loaded machine, well short of the 20 to 30 s it waited for services
+# The nodes whose process stops with the controller's: the host's robot, the composite process.
+DOWN_TOGETHER = {"agent": "controller+battery", "robot": "controller+battery", "process": "controller"}
+BACKOFF_RESTARTS = 4  # then the next respawn is seconds away (the backoff doubles per quick failure)
+
+
+def param(cluster, *args):
+    began = time.monotonic()
+    done = cluster.cli("param", *args, "--connect", cluster.endpoint)
+    return done, time.monotonic() - began
+
+
+@pytest.mark.parametrize("isolation", ["agent", "robot", "process"])
+def test_param_on_a_node_in_backoff_fails_at_once_saying_so(host_a, isolation):
+    cluster = host_a
+    spec = cluster.spec(
+        name="stuck",
+        fleet="stuck",
+        defaults={"template": "hosted", "agent": "hostA", "isolation": isolation},
+        robots=[{"name": "robot2", "parameters": {"controller": {"waypoints": [1.0, 2.0, 3.0]}}}],
+    )
+    outcome = cluster.deploy(spec, wait=False)
+    assert outcome.ok, outcome
+
+    def controller():
+        row = robot(cluster.view("stuck"), "robot2")
+        return next(node for node in row.nodes if node["name"] == "controller")
+
+    # Between two exits a node's process runs for a moment; once it has failed a few times in a
+    # row, its backoff leaves seconds for the commands below.
+    poll(
+        controller,
+        until=lambda node: node["state"] == "backoff" and node["restarts"] >= BACKOFF_RESTARTS,
+        timeout=120,
+        retry_on=(StopIteration,),  # not in the view yet
+        what=f"robot2's controller in backoff after {BACKOFF_RESTARTS} restarts",
+    )
+
+    got, took = param(cluster, "get", "robot2", "controller", "max_speed")
+    assert got.returncode == 1 and took < AT_ONCE, (took, got.stdout + got.stderr)
+    (line,) = got.stderr.splitlines()
+    assert line.startswith("fleet: error: robot2/controller is not running (backoff: ") and REFUSAL in line, line
+
+    changed, took = param(cluster, "set", "robot2", "controller", "max_speed", "0.5")
+    assert changed.returncode == 1 and took < AT_ONCE, (took, changed.stdout + changed.stderr)
+    assert changed.stderr == got.stderr  # not running: not a refusal, which is a node's answer
+    assert "refused" not in changed.stderr
+
+    listed, took = param(cluster, "list", "robot2")
+    assert listed.returncode == 1 and took < AT_ONCE, (took, listed.stdout + listed.stderr)
+    (line,) = listed.stderr.splitlines()
+    down = DOWN_TOGETHER[isolation]
+    assert line.startswith(f"fleet: error: robot2/{down}: not running (backoff: "), line
+    # The nodes that run answer as ever.
+    assert "sleeper" in listed.stdout and "period" in listed.stdout, listed.stdout
+    assert ("capacity" in listed.stdout) == (isolation == "process"), listed.stdout
