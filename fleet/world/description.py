@@ -38,7 +38,7 @@ from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
 from fleet.rules import ROS_TOKEN
-from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, read_input
+from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, number_text_hint, read_input
 
 MODEL_TYPES = ("light", "husky", "racecar")
 # Footprint rectangles (length along x, width) of the URDF models, measured from their URDFs.
@@ -408,6 +408,7 @@ def _world_file() -> TypeAdapter:
 
 _UNKNOWN = ("extra_forbidden", "unexpected_keyword_argument", "invalid_key")  # the last: `1: x`
 _NOT_A_MAPPING = ("dataclass_type", "dataclass_args_type", "model_attributes_type", "dict_type")
+_NOT_A_NUMBER = ("float_type", "float_parsing", "finite_number")
 _WORDING = {
     "float_type": "must be a number, got {input!r}",
     "float_parsing": "must be a number, got {input!r}",
@@ -452,6 +453,8 @@ def _world_error(error: ValidationError, data: Any, positions: SourceMap) -> Wor
     else:
         wording = message if kind == "field" else _WORDING.get(kind, message).format(**context)
         text = f"{_what(data, parent)}: '{key}' {wording}"
+    if kind in _NOT_A_NUMBER and (hint := number_text_hint(problem["input"])):
+        text += f" ({hint})"
     return WorldError(text, positions.locate(at))
 
 

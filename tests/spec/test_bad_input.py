@@ -61,6 +61,15 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             "fleet: demo\nworld: {physics_rate: 1e2}\nrobots: [{name: r1}]\n",
             [":2:23:", "got string '1e2' (YAML reads 1e2 as text: write 1.0e+2)"],
         ),
+        # With a '.' but no sign in the exponent, it is text to YAML 1.1 too.
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: crate, type: box, position: [2.5, 1.5], "
+            "size: [1.0e9, 0.5, 0.5]}\nrobots: [{name: r1}]\n",
+            [
+                ":4:61:",
+                "size[0]: Input should be a valid number, got string '1.0e9' (YAML reads 1.0e9 as text: write 1.0e+9)",
+            ],
+        ),
         # Keys YAML 1.1 reads as other than text, named where they are.
         ("fleet: demo\nyes: 1\nrobots: [{name: r1}]\n", [":2:1:", "key bool True: keys here are names"]),
         ("fleet: demo\nagents: {5: {}}\nrobots: [{name: r1}]\n", [":2:10:", "key int 5 in agents: keys here"]),
@@ -419,3 +428,14 @@ def test_real_process_error_is_one_line_exit_2(tmp_path):
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert f"{spec}:4:" in result.stderr and "nested lists" in result.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_launch_argument_number_yaml_reads_as_text_says_how_to_write_it(tmp_path, capsys):
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    (templates / "custom.launch.yaml.j2").write_text(
+        'launch:\n- arg: {name: speed, default: {{ arg("speed", 1.5) }}}\n'
+    )
+    robot = "{name: r1, template: custom, launch_args: {speed: 2.5e3}}"
+    line = render_bad(tmp_path, capsys, f"fleet: demo\ntemplates: {templates}\nrobots:\n  - {robot}\n")
+    assert "is a number (its default is 1.5), got '2.5e3' (YAML reads 2.5e3 as text: write 2.5e+3)" in line, line

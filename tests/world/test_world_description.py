@@ -113,3 +113,25 @@ def test_a_number_without_value_is_its_default_and_a_full_size_holds_the_height(
         0.3,
     )
     assert world.obstacles[0].size == (1.0, 1.0, 2.0) and world.obstacles[0].height == 2.0
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            "physics_rate: 1.0e3\n",
+            "w.yaml:1:15: world: 'physics_rate' must be a number, got '1.0e3' (YAML reads 1.0e3 as text: write 1.0e+3)",
+        ),
+        (
+            "obstacles:\n- {name: crate, type: box, position: [1e2, 0], size: [1, 1, 1]}\n",
+            "w.yaml:2:39: obstacle 'crate': 'position' must contain numbers, got '1e2' (YAML reads 1e2 as text: "
+            "write 1.0e+2)",
+        ),
+        # Quoted as YAML writes a float: text on purpose, nothing to suggest.
+        ("clock_rate: '1.0e+3'\n", "w.yaml:1:13: world: 'clock_rate' must be a number, got '1.0e+3'"),
+    ],
+)
+def test_a_number_yaml_reads_as_text_says_how_to_write_it(text, message):
+    with pytest.raises(WorldError) as caught:
+        parse_world(text, "w.yaml")
+    assert str(caught.value) == message
