@@ -45,7 +45,7 @@ from fleet.spec.params import flatten, unflatten
 from fleet.spec.rcl_types import value_text
 from fleet.spec.yaml_source import DocPath, SourceMap, load_yaml, read_input
 from fleet.wire.limits import MAX_BUNDLES, MAX_MESSAGE_BYTES, apply_size_bound, files_problem
-from fleet.world.description import world_spec
+from fleet.world.description import default_clock_rate, world_spec
 from fleet.world.geometry import spawn_problem
 
 if TYPE_CHECKING:
@@ -634,7 +634,7 @@ def world_description(spec: FleetSpec) -> dict[str, Any]:
         "fleet": spec.fleet,
         "physics_rate": world.physics_rate,
         "real_time": world.real_time,
-        "clock_rate": world.clock_rate,
+        "clock_rate": world.clock_rate if world.clock_rate is not None else default_clock_rate(world.physics_rate),
         "obstacles": obstacles,
         "robots": robots,
     }
@@ -687,7 +687,9 @@ def _check_world(spec: FleetSpec, description: dict[str, Any]) -> None:
 
 class _WorldPlaces(SourceMap):
     """Where world.yaml's values are written in the spec: `world.yaml robots[k]` is the k-th
-    simulated robot, its obstacles and settings are the spec's `world`."""
+    simulated robot, its obstacles and settings are the spec's `world`; what world_description
+    gives a robot from elsewhere is placed there (its odom_rate: the spec's `world.odom_rate`;
+    a lidar or model field the robot does not write: `defaults`)."""
 
     def __init__(self, spec: FleetSpec, simulated: list[int]):
         super().__init__(spec.source_file)
@@ -696,13 +698,30 @@ class _WorldPlaces(SourceMap):
 
     def locate(self, path: DocPath, key: bool = False) -> Location:
         if path[:1] == ("robots",) and len(path) > 1:
-            spec_path: DocPath = ("robots", self.simulated[path[1]], *path[2:])
+            index, field = self.simulated[path[1]], path[2:]
+            spec_path: DocPath = ("robots", index, *field)
+            if field[:1] in (("odom_rate",), ("cmd_timeout",)):
+                spec_path = ("world", *field)
+            elif (
+                (field[:1] == ("model",) or (field[:1] == ("lidar",) and self.spec.robots[index].lidar is None))
+                and not self._written(spec_path)
+                and self._written(("defaults", *field))
+            ):
+                spec_path = ("defaults", *field)
         elif path[:1] == ("fleet",):
             spec_path = path
         else:
             spec_path = ("world", *path)
         source = self.spec._source_map
         return source.locate(spec_path, key=key) if source is not None else Location(self.spec.source_file)
+
+    def _written(self, path: DocPath) -> bool:
+        """Whether the spec writes a value at `path`."""
+        source = self.spec._source_map
+        if source is None:
+            return False
+        source.locate(())  # the positions are read when first asked for
+        return tuple(path) in source.positions
 
 
 def _check_files(spec: FleetSpec, bundle: Bundle) -> None:

@@ -40,7 +40,7 @@ from jinja2.sandbox import ImmutableSandboxedEnvironment, safe_range
 from fleet.errors import Location, TemplateError
 from fleet.expand.shared import SharedMark, SharedTopic, declare, merge
 from fleet.rules import PARAMS_SUFFIX, TEMPLATE_SUFFIX, template_name_problem
-from fleet.spec.yaml_source import MAX_TEXT_CHARS
+from fleet.spec.yaml_source import MAX_TEXT_CHARS, number_text_hint
 
 DEFAULTS_SUFFIX = PARAMS_SUFFIX  # a template's parameter defaults, beside it
 MAX_OUTPUT_CHARS = MAX_TEXT_CHARS  # a rendered launch file is read back as fleet's own input
@@ -115,7 +115,8 @@ def argument_problem(value: Any, default: Any) -> str | None:
     if isinstance(default, float):
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             return None
-        return f"is a number (its default is {default!r}), got {value!r}"
+        hint = number_text_hint(value)
+        return f"is a number (its default is {default!r}), got {value!r}" + (f" ({hint})" if hint else "")
     return None  # text: any value is written as text
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import difflib
-import re
 import types
 import typing
 from pathlib import Path
@@ -24,7 +23,7 @@ from fleet.rules import (
 )
 from fleet.spec.model import FleetSpec
 from fleet.spec.params import ParameterNameClash, flatten, namespace_clash, value_problem
-from fleet.spec.yaml_source import DocPath, PathPattern, SourceMap, load_yaml, read_input
+from fleet.spec.yaml_source import DocPath, PathPattern, SourceMap, load_yaml, number_text_hint, read_input
 
 # The mappings of a spec that hold a node's parameters: their values are typed as rcl types them.
 PARAMETER_PATHS: tuple[PathPattern, ...] = (("robots", None, "parameters", None), ("defaults", "parameters", None))
@@ -290,15 +289,9 @@ def _parent(loc: DocPath) -> str:
     return ".".join(parts).replace(".[", "[")
 
 
-# A number YAML 1.1 reads as a string: an exponent, but no '.' in the mantissa (1e2, -3E-4).
-_EXPONENT_WITHOUT_DOT = re.compile(r"[+-]?[0-9]+[eE][+-]?[0-9]+")
-
-
 def _describe(value: Any) -> str:
-    if isinstance(value, str) and _EXPONENT_WITHOUT_DOT.fullmatch(value):
-        mantissa, _, exponent = value.lower().partition("e")
-        signed = exponent if exponent[0] in "+-" else f"+{exponent}"  # YAML 1.1 wants the sign too
-        return f"string {value!r} (YAML reads 1e2 as text: write {mantissa}.0e{signed})"
+    if hint := number_text_hint(value):
+        return f"string {value!r} ({hint})"
     if isinstance(value, str):
         return f"string {value!r}"
     if value is None:

@@ -125,7 +125,7 @@ class World(Measured):
     agent: str | None = None  # defaults to defaults.agent
     physics_rate: float = Field(240.0, gt=0, le=2000)  # Hz
     real_time: bool = True
-    clock_rate: float = Field(100.0, gt=0, le=1000)  # Hz of /clock
+    clock_rate: float | None = Field(None, gt=0, le=1000)  # Hz of /clock; default: 100, at most physics_rate
     odom_rate: float = Field(50.0, gt=0, le=1000)
     cmd_timeout: float = Field(0.5, gt=0, le=60)
     obstacles: list[Obstacle] = []

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -147,6 +148,24 @@ def load_yaml(text: str, file: str | Path, parameter_paths: tuple[PathPattern, .
     source.text = text
     source.parameter_paths = parameter_paths
     return data, source
+
+
+# A number with an exponent that YAML 1.1 reads as text: its floats need a '.' in the mantissa
+# and a sign in the exponent (1.0e+9), so `1e9`, `1e+9`, `1.0e9` and `.5e3` are strings.
+_TEXT_EXPONENT = re.compile(r"([+-]?)([0-9]*)(?:\.([0-9]*))?[eE]([+-]?)([0-9]+)")
+
+
+def number_text_hint(value: object) -> str | None:
+    """How to write the number `value` means when YAML read it as text (`1.0e9`), or None: the
+    one rule every message about a number that is a string uses."""
+    match = _TEXT_EXPONENT.fullmatch(value) if isinstance(value, str) else None
+    if match is None or not (match[2] or match[3]):
+        return None
+    sign, whole, fraction, exponent_sign, exponent = match.groups()
+    if fraction is not None and exponent_sign:
+        return None  # a float to YAML too: it was quoted on purpose
+    written = f"{sign}{whole or '0'}.{fraction or '0'}e{exponent_sign or '+'}{exponent}"
+    return f"YAML reads {value} as text: write {written}"
 
 
 def safe_load(text: str, file: str | Path = "<yaml>") -> Any:

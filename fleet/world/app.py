@@ -21,7 +21,15 @@ from typing import Any
 import numpy as np
 
 from fleet.world import lidar
-from fleet.world.description import ObstacleSpec, Pose2D, RobotSpec, WorldError, WorldSpec, load_world
+from fleet.world.description import (
+    ObstacleSpec,
+    Pose2D,
+    RobotSpec,
+    WorldError,
+    WorldSpec,
+    load_world,
+    slot_steps,
+)
 from fleet.world.geometry import obstacle_shape, robot_shape
 from fleet.world.inputs import RobotInputs
 from fleet.world.physics import PhysicsWorld, SpawnError
@@ -41,7 +49,6 @@ from fleet.world.status_writer import StatusWriter
 
 log = logging.getLogger("fleet.world")
 
-SLOT_RATE = 60.0  # Hz (sim): lidar batches, contact checks and trail samples run on these ticks
 MARKER_PERIOD = 0.5  # s (wall): markers are for people watching RViz, whatever the sim's speed
 CONTACT_SHOWN = 1.0  # s (sim): a robot's marker stays red this long after a contact
 STATUS_PERIOD = 0.25  # s (wall) between status file writes
@@ -97,7 +104,8 @@ class WorldApp:
         self.stopping = False
         self._obstacle_shapes: list = []
         self._tick = 0
-        self._slot_every = max(1, round(self.spec.physics_rate / SLOT_RATE))
+        # Lidar batches, contact checks, trail samples and command pick-ups run every this many ticks.
+        self._slot_every = slot_steps(self.spec.physics_rate)
         self._next_clock = 0.0
         self._next_odom = 0.0  # sim time: the earliest next_odom of all robots
         self._next_trail = 0.0  # sim time: the earliest next trail sample of all robots
@@ -251,7 +259,7 @@ class WorldApp:
         if bridge is not None:
             timeouts = self._sync_layout()  # robots come and go between steps (reload)
             if self._tick % self._slot_every == 0:
-                # Commands change at controller rates (~20 Hz): picking them up at SLOT_RATE adds
+                # Commands change at controller rates (~20 Hz): picking them up once a slot adds
                 # at most one slot of latency and saves work per robot per tick.
                 self._inputs = bridge.inputs()
                 physics.command_all(self._inputs.live_commands(timeouts, now))

@@ -38,12 +38,62 @@ from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
 from fleet.rules import ROS_TOKEN
-from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, read_input
+from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, number_text_hint, read_input
 
 MODEL_TYPES = ("light", "husky", "racecar")
 # Footprint rectangles (length along x, width) of the URDF models, measured from their URDFs.
 URDF_FOOTPRINTS = {"husky": (0.99, 0.68), "racecar": (0.55, 0.30)}
 OBSTACLE_TYPES = ("box", "wall", "cylinder")
+
+# -- the world's extent and pace: the rules every world.yaml (and so every spec's world) obeys --------
+
+# Robots and obstacles stand within WORLD_EXTENT of the origin on x and y, and no obstacle is more
+# than MAX_OBSTACLE_SIZE long, wide, across or high.  A world 10 km across holds the largest sites a
+# fleet simulates (a port, a mine, an airport), so a coordinate or a size beyond it is a typo; far
+# beyond it the world stalls.  Measured (one robot, pybullet 3.2.7): pybullet computes in doubles,
+# so a robot 10^9 m from the origin drives and stops at a wall as at the origin, and boxes up to
+# 10^6 m long hold robots off (at 10^12 m robots drive through them).  What grows with an obstacle
+# is the lidar: it cuts a rectangle into pieces 1 m long along its long side (fleet.world.lidar.PIECE),
+# each tested by every scan within reach.  With a 10 km wall (10,000 pieces) the world ran at 30x
+# real time instead of 49x; with 10^6 m it took 5 s to cut and ran at 2x (25 ms a scan, 4.5 s for
+# 100 robots' scans); 10^12 m or 10^300 m are never cut: the world hung after its first step,
+# deaf to Ctrl-C.  A square is dearer than a wall of its side, its strips reaching across it: a
+# scan beside one 1 km square took 8 ms, beside a 10 km one 28 ms (0.3 ms in an empty world).
+WORLD_EXTENT = 5000.0  # m
+MAX_OBSTACLE_SIZE = 2 * WORLD_EXTENT  # m: a wall may cross the whole world
+
+# The slowest physics.  Odometry and /clock go out at most once per physics step, so the default
+# 50 Hz odometry needs 50 steps a second; URDF models need steps that short to drive straight
+# (measured over 5 s at 1 m/s: at 10 Hz the racecar spun round and the husky drifted, at 20-30 Hz
+# both ended a few cm off course, at 50 Hz they drove as at 240 Hz); and a real-time world sleeps a
+# step at a time, so a robot's cmd_timeout (0.5 s by default) and Ctrl-C are seen within 20 ms
+# (at physics_rate 0.001 the world slept 1000 s per step and did not stop on Ctrl-C).
+MIN_PHYSICS_RATE = 50.0  # Hz
+DEFAULT_ODOM_RATE = 50.0  # Hz
+DEFAULT_CLOCK_RATE = 100.0  # Hz of /clock, or physics_rate when that is lower
+
+# Lidars, contacts, trails and the pick-up of the robots' commands run on slots of whole physics
+# steps, about SLOT_RATE a second: a lidar scans at most once per slot.
+SLOT_RATE = 60.0  # Hz
+
+
+def slot_steps(physics_rate: float) -> int:
+    """Physics steps per slot."""
+    return max(1, round(physics_rate / SLOT_RATE))
+
+
+def pace_problem(rate: float, what: str, physics_rate: float, per_slot: bool = False) -> str | None:
+    """Why the world cannot give `what` (/clock, odometry: once per physics step at most; a lidar,
+    per_slot: once per slot at most) `rate` messages a second with `physics_rate` steps a second."""
+    steps = slot_steps(physics_rate) if per_slot else 1
+    limit = physics_rate / steps
+    if rate <= limit:
+        return None
+    once = f"once every {steps} physics steps" if steps > 1 else "once per physics step"
+    return (
+        f"{what} {rate:g} Hz is faster than the world publishes it ({once} at physics_rate "
+        f"{physics_rate:g}): at most {limit:g} Hz"
+    )
 
 
 class WorldError(FleetError):
@@ -104,10 +154,29 @@ def _list_of(*counts: int) -> BeforeValidator:
     return BeforeValidator(check)
 
 
+def _in_world(value: float) -> float:
+    if abs(value) > WORLD_EXTENT:
+        raise _field_problem(f"must be in {-WORLD_EXTENT:g}..{WORLD_EXTENT:g} m (the world's extent), got {value:g}")
+    return value
+
+
+def _at_most(limit: float) -> AfterValidator:
+    def check(value: float) -> float:
+        if value > limit:
+            raise _field_problem(
+                f"must be at most {limit:g} m (the world is {2 * WORLD_EXTENT:g} m across), got {value:g}"
+            )
+        return value
+
+    return AfterValidator(check)
+
+
 Number = Annotated[float, Strict(), Field(allow_inf_nan=False)]  # an int or a float, not a bool
 Name = Annotated[StrictStr, AfterValidator(_valid_name)]
 ObstacleType = Annotated[StrictStr, _one_of(OBSTACLE_TYPES, "type")]
-Point = Annotated[tuple[Number, Number], _list_of(2)]
+Coordinate = Annotated[Number, AfterValidator(_in_world)]  # x or y of a place in the world, m
+Point = Annotated[tuple[Coordinate, Coordinate], _list_of(2)]
+Dimension = Annotated[Number, _at_most(MAX_OBSTACLE_SIZE)]  # an obstacle's length, width or height, m
 
 
 class _FromYaml:
@@ -138,8 +207,8 @@ def _number_or_string_fields(kind: type) -> frozenset[str]:
 
 @dataclass(frozen=True)
 class Pose2D(_FromYaml):
-    x: Number = 0.0
-    y: Number = 0.0
+    x: Coordinate = 0.0
+    y: Coordinate = 0.0
     yaw: Number = 0.0
 
 
@@ -216,7 +285,7 @@ class RobotSpec(_FromYaml):
     model: ModelSpec = field(default_factory=ModelSpec)
     pose: Pose2D = field(default_factory=Pose2D)
     lidar: LidarSpec = field(default_factory=LidarSpec)
-    odom_rate: Annotated[Number, Field(gt=0, le=1000.0)] = 50.0
+    odom_rate: Annotated[Number, Field(gt=0, le=1000.0)] = DEFAULT_ODOM_RATE
     cmd_timeout: Annotated[Number, Field(gt=0, le=3600.0)] = 0.5
     ground_truth: StrictBool = False
 
@@ -259,6 +328,20 @@ class WorldSpec:
     source: str | None = None
 
 
+def default_clock_rate(physics_rate: float) -> float:
+    """/clock's rate when none is given: DEFAULT_CLOCK_RATE, or every step of a slower physics."""
+    return min(DEFAULT_CLOCK_RATE, physics_rate)
+
+
+def _fast_enough(physics_rate: float) -> float:
+    if physics_rate < MIN_PHYSICS_RATE:
+        raise _field_problem(
+            f"must be at least {MIN_PHYSICS_RATE:g} steps a second (one per message of the default "
+            f"{DEFAULT_ODOM_RATE:g} Hz odometry; slower steps drive URDF models off course), got {physics_rate:g}"
+        )
+    return physics_rate
+
+
 # -- world.yaml's forms of an obstacle and of the world ----------------------------------------------
 
 
@@ -270,8 +353,8 @@ class _Box(_FromYaml):
     type: ObstacleType
     position: Point
     yaw: Number = 0.0
-    size: Annotated[tuple[Number, ...], _list_of(2, 3)]
-    height: Annotated[Number, Field(gt=0)] = 1.0
+    size: Annotated[tuple[Dimension, ...], _list_of(2, 3)]
+    height: Annotated[Dimension, Field(gt=0)] = 1.0
     radius: Any = None  # a cylinder's, ignored
 
     @model_validator(mode="before")
@@ -300,8 +383,8 @@ class _Cylinder(_FromYaml):
     type: ObstacleType
     position: Point
     yaw: Number = 0.0
-    radius: Annotated[Number, Field(gt=0)]
-    height: Annotated[Number, Field(gt=0)] = 1.0
+    radius: Annotated[Number, Field(gt=0), _at_most(MAX_OBSTACLE_SIZE / 2)]
+    height: Annotated[Dimension, Field(gt=0)] = 1.0
     size: Any = None  # a box's, ignored
 
     def spec(self) -> ObstacleSpec:
@@ -320,9 +403,9 @@ class _WorldFile(_FromYaml):
     obstacles: tuple[_Obstacle, ...] = ()
     robots: tuple[RobotSpec, ...] = ()
     fleet: StrictStr = "fleet"
-    physics_rate: Annotated[Number, Field(gt=0, le=10000.0)] = 240.0
+    physics_rate: Annotated[Number, Field(le=10000.0), AfterValidator(_fast_enough)] = 240.0
     real_time: StrictBool = True
-    clock_rate: Annotated[Number, Field(gt=0, le=10000.0)] = 100.0
+    clock_rate: Annotated[Number, Field(gt=0, le=10000.0)] | None = None  # default: default_clock_rate
 
     @model_validator(mode="before")
     @classmethod
@@ -354,12 +437,25 @@ class _WorldFile(_FromYaml):
             namespaces.add(robot.namespace)
         return robots
 
+    @model_validator(mode="after")
+    def _paced(self) -> _WorldFile:
+        """What is published per physics step or per slot is not asked for faster than that."""
+        physics = self.physics_rate
+        if self.clock_rate is not None and (problem := pace_problem(self.clock_rate, "clock_rate", physics)):
+            raise _check_problem(problem, ("clock_rate",))
+        for index, robot in enumerate(self.robots):
+            if problem := pace_problem(robot.odom_rate, "odom_rate", physics):
+                raise _check_problem(f"robot '{robot.name}': {problem}", ("robots", index, "odom_rate"))
+            if problem := pace_problem(robot.lidar.rate, "lidar rate", physics, per_slot=True):
+                raise _check_problem(f"robot '{robot.name}': {problem}", ("robots", index, "lidar", "rate"))
+        return self
+
     def spec(self, source: str) -> WorldSpec:
         return WorldSpec(
             fleet=self.fleet,
             physics_rate=self.physics_rate,
             real_time=self.real_time,
-            clock_rate=self.clock_rate,
+            clock_rate=self.clock_rate if self.clock_rate is not None else default_clock_rate(self.physics_rate),
             obstacles=tuple(entry.spec() for entry in self.obstacles),
             robots=self.robots,
             source=source,
@@ -408,6 +504,7 @@ def _world_file() -> TypeAdapter:
 
 _UNKNOWN = ("extra_forbidden", "unexpected_keyword_argument", "invalid_key")  # the last: `1: x`
 _NOT_A_MAPPING = ("dataclass_type", "dataclass_args_type", "model_attributes_type", "dict_type")
+_NOT_A_NUMBER = ("float_type", "float_parsing", "finite_number")
 _WORDING = {
     "float_type": "must be a number, got {input!r}",
     "float_parsing": "must be a number, got {input!r}",
@@ -448,10 +545,13 @@ def _world_error(error: ValidationError, data: Any, positions: SourceMap) -> Wor
     elif kind == "value":
         text = f"{_what(data, parent)}: {message}"
     elif isinstance(key, int):  # an item of a list of numbers
-        text = f"{_what(data, loc[:-2])}: '{loc[-2]}' must contain numbers, got {problem['input']!r}"
+        wording = message if kind == "field" else f"must contain numbers, got {problem['input']!r}"
+        text = f"{_what(data, loc[:-2])}: '{loc[-2]}' {wording}"
     else:
         wording = message if kind == "field" else _WORDING.get(kind, message).format(**context)
         text = f"{_what(data, parent)}: '{key}' {wording}"
+    if kind in _NOT_A_NUMBER and (hint := number_text_hint(problem["input"])):
+        text += f" ({hint})"
     return WorldError(text, positions.locate(at))
 
 

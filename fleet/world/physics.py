@@ -14,7 +14,7 @@ import numpy as np
 import pybullet as pb
 import pybullet_data
 
-from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D
+from fleet.world.description import ModelSpec, ObstacleSpec, Pose2D, slot_steps
 from fleet.world.geometry import Shape, obstacle_shape, placement_problem, robot_shape
 
 GRAVITY = -9.81
@@ -279,7 +279,7 @@ class PhysicsWorld:
         pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=self.client)
         pb.setTimeStep(self.dt, physicsClientId=self.client)
         self.gravity = 0.0  # switched on while URDF robots (which need it for traction) are present
-        self._light_every = max(1, round(physics_rate / 60.0))  # light velocity refresh, in ticks
+        self._light_every = slot_steps(physics_rate)  # light velocity refresh, in ticks: once a slot
         self._ticks = 0
         # 10 iterations instead of 50: planar contacts converge fast and the solver dominates the
         # step cost with many bodies.

@@ -61,6 +61,15 @@ def render_bad(tmp_path: Path, capsys, spec_text: str, *extra: str) -> str:
             "fleet: demo\nworld: {physics_rate: 1e2}\nrobots: [{name: r1}]\n",
             [":2:23:", "got string '1e2' (YAML reads 1e2 as text: write 1.0e+2)"],
         ),
+        # With a '.' but no sign in the exponent, it is text to YAML 1.1 too.
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: crate, type: box, position: [2.5, 1.5], "
+            "size: [1.0e9, 0.5, 0.5]}\nrobots: [{name: r1}]\n",
+            [
+                ":4:61:",
+                "size[0]: Input should be a valid number, got string '1.0e9' (YAML reads 1.0e9 as text: write 1.0e+9)",
+            ],
+        ),
         # Keys YAML 1.1 reads as other than text, named where they are.
         ("fleet: demo\nyes: 1\nrobots: [{name: r1}]\n", [":2:1:", "key bool True: keys here are names"]),
         ("fleet: demo\nagents: {5: {}}\nrobots: [{name: r1}]\n", [":2:10:", "key int 5 in agents: keys here"]),
@@ -419,3 +428,75 @@ def test_real_process_error_is_one_line_exit_2(tmp_path):
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert f"{spec}:4:" in result.stderr and "nested lists" in result.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "spec_text, expected",
+    [
+        # The world's limits (fleet/world/description.py), placed where the spec writes the value.
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: crate, type: box, position: [2.5, 1.5], "
+            "size: [1.0e+300, 0.5, 0.5]}\nrobots: [{name: r1}]\n",
+            ":4:61: obstacle 'crate': 'size' must be at most 10000 m (the world is 10000 m across), got 1e+300",
+        ),
+        (
+            "fleet: demo\nworld:\n  obstacles:\n    - {name: silo, type: cylinder, position: [9000, 0], radius: 1}\n"
+            "robots: [{name: r1}]\n",
+            ":4:47: obstacle 'silo': 'position' must be in -5000..5000 m (the world's extent), got 9000",
+        ),
+        (
+            "fleet: demo\nworld: {}\nrobots:\n  - {name: r0, simulated: false}\n  - {name: r1, pose: {x: 4.0e+5}}\n",
+            ":5:26: robot 'r1'.pose: 'x' must be in -5000..5000 m (the world's extent), got 400000",
+        ),
+        (
+            "fleet: demo\nworld: {physics_rate: 0.001}\nrobots: [{name: r1}]\n",
+            ":2:23: world: 'physics_rate' must be at least 50 steps a second",
+        ),
+        (
+            "fleet: demo\nworld: {physics_rate: 240, clock_rate: 1000}\nrobots: [{name: r1}]\n",
+            ":2:40: clock_rate 1000 Hz is faster than the world publishes it (once per physics step at "
+            "physics_rate 240): at most 240 Hz",
+        ),
+        (
+            "fleet: demo\nworld: {physics_rate: 60, odom_rate: 100}\nrobots: [{name: r1}]\n",
+            ":2:38: robot 'r1': odom_rate 100 Hz is faster than the world publishes it (once per physics step "
+            "at physics_rate 60): at most 60 Hz",
+        ),
+        # A robot's lidar from `defaults` is placed there, its own lidar at the robot.
+        (
+            "fleet: demo\nworld: {}\ndefaults: {lidar: {rate: 100}}\nrobots: [{name: r1}]\n",
+            ":3:26: robot 'r1': lidar rate 100 Hz is faster than the world publishes it (once every 4 physics "
+            "steps at physics_rate 240): at most 60 Hz",
+        ),
+        (
+            "fleet: demo\nworld: {}\nrobots: [{name: r1}, {name: r2, lidar: {rate: 61}}]\n",
+            ":3:47: robot 'r2': lidar rate 61 Hz",
+        ),
+        (
+            "fleet: demo\nworld: {}\ndefaults:\n  lidar: {range_min: 5, range_max: 1}\nrobots: [{name: r1}]\n",
+            ":4:22: robot 'r1'.lidar: range_min must be below range_max",
+        ),
+    ],
+)
+def test_what_the_world_would_not_hold_is_refused_at_render(tmp_path, capsys, spec_text, expected):
+    line = render_bad(tmp_path, capsys, spec_text)
+    assert line.startswith(f"fleet: error: {tmp_path / 'fleet.yaml'}{expected}"), line
+
+
+def test_the_default_clock_rate_follows_a_slow_physics(tmp_path, capsys):
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text("fleet: demo\nworld: {physics_rate: 50}\nrobots: [{name: r1}]\n")
+    code, _, stderr = run_cli(["render", str(spec), "-o", str(tmp_path / "out")], capsys)
+    assert code in (0, None), stderr
+    assert "\nclock_rate: 50.0\n" in (tmp_path / "out" / "world" / "world.yaml").read_text()
+
+
+def test_a_launch_argument_number_yaml_reads_as_text_says_how_to_write_it(tmp_path, capsys):
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    (templates / "custom.launch.yaml.j2").write_text(
+        'launch:\n- arg: {name: speed, default: {{ arg("speed", 1.5) }}}\n'
+    )
+    robot = "{name: r1, template: custom, launch_args: {speed: 2.5e3}}"
+    line = render_bad(tmp_path, capsys, f"fleet: demo\ntemplates: {templates}\nrobots:\n  - {robot}\n")
+    assert "is a number (its default is 1.5), got '2.5e3' (YAML reads 2.5e3 as text: write 2.5e+3)" in line, line

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from fleet.world.app import WorldApp
+from fleet.world.app import WorldApp, resume_time
 from fleet.world.description import WorldError
 from fleet.world.snapshot import draw_snapshot
 
@@ -196,3 +196,20 @@ def test_a_new_spawn_pose_moves_the_robot_there_at_a_reload_and_at_a_restart(fil
         )
     finally:
         again.close()
+
+
+@pytest.mark.parametrize(
+    "status, resumed",
+    [
+        ({"sim_time": 10.0, "real_time_factor": 2.4, "stopped": True}, 10.0),  # a clean stop: where it stopped
+        # A crash: two status periods (0.5 s of wall time) at the written speed, at least real time's
+        # (docs/architecture.md, "A restarted world resumes from its status file").
+        ({"sim_time": 10.0, "real_time_factor": 1.0, "stopped": False}, 10.5),
+        ({"sim_time": 10.0, "real_time_factor": 0.3, "stopped": False}, 10.5),
+        ({"sim_time": 10.0, "real_time_factor": 2.4, "stopped": False}, 11.2),
+        ({"sim_time": 10.0, "real_time_factor": "fast", "stopped": False}, 10.5),
+        (None, 0.0),
+    ],
+)
+def test_a_restarted_world_resumes_its_clock_as_documented(status, resumed):
+    assert resume_time(status) == pytest.approx(resumed)

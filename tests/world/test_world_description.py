@@ -65,7 +65,7 @@ def test_wall_is_a_box_and_empty_world_is_fine():
             "'position' must be a list of 2",
         ),
         ("robots: [\n", ":", "invalid YAML"),
-        ("physics_rate: -1\n", ":1:", "'physics_rate' must be > 0"),
+        ("physics_rate: -1\n", ":1:", "'physics_rate' must be at least 50 steps a second"),
     ],
 )
 def test_errors_name_file_line_and_problem(text, where, words):
@@ -113,3 +113,93 @@ def test_a_number_without_value_is_its_default_and_a_full_size_holds_the_height(
         0.3,
     )
     assert world.obstacles[0].size == (1.0, 1.0, 2.0) and world.obstacles[0].height == 2.0
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        # A size, radius or height no world holds: the lidar would cut it into endless 1 m pieces.
+        (
+            "obstacles:\n- {name: crate, type: box, position: [2.5, 1.5], size: [1.0e+300, 0.5, 0.5]}\n",
+            "w.yaml:2:57: obstacle 'crate': 'size' must be at most 10000 m (the world is 10000 m across), got 1e+300",
+        ),
+        (
+            "obstacles:\n- {name: crate, type: box, position: [0, 0], size: [1, 1], height: 1.0e+6}\n",
+            "w.yaml:2:68: obstacle 'crate': 'height' must be at most 10000 m (the world is 10000 m across), got 1e+06",
+        ),
+        (
+            "obstacles:\n- {name: silo, type: cylinder, position: [0, 0], radius: 5001}\n",
+            "w.yaml:2:58: obstacle 'silo': 'radius' must be at most 5000 m (the world is 10000 m across), got 5001",
+        ),
+        # Places beyond the world's extent.
+        (
+            "obstacles:\n- {name: crate, type: box, position: [0, -1.0e+6], size: [1, 1, 1]}\n",
+            "w.yaml:2:42: obstacle 'crate': 'position' must be in -5000..5000 m (the world's extent), got -1e+06",
+        ),
+        (
+            "robots:\n- {name: r1, pose: {x: 400, y: -9000}}\n",
+            "w.yaml:2:32: robot 'r1'.pose: 'y' must be in -5000..5000 m (the world's extent), got -9000",
+        ),
+        # Rates the world cannot keep.
+        (
+            "physics_rate: 0.001\n",
+            "w.yaml:1:15: world: 'physics_rate' must be at least 50 steps a second (one per message of the "
+            "default 50 Hz odometry; slower steps drive URDF models off course), got 0.001",
+        ),
+        (
+            "physics_rate: 240\nclock_rate: 1000\n",
+            "w.yaml:2:13: clock_rate 1000 Hz is faster than the world publishes it (once per physics step at "
+            "physics_rate 240): at most 240 Hz",
+        ),
+        (
+            "physics_rate: 100\nrobots:\n- {name: r1, odom_rate: 200}\n",
+            "w.yaml:3:25: robot 'r1': odom_rate 200 Hz is faster than the world publishes it (once per physics "
+            "step at physics_rate 100): at most 100 Hz",
+        ),
+        (
+            "robots:\n- {name: r1, lidar: {rate: 100}}\n",
+            "w.yaml:2:28: robot 'r1': lidar rate 100 Hz is faster than the world publishes it (once every 4 "
+            "physics steps at physics_rate 240): at most 60 Hz",
+        ),
+    ],
+)
+def test_what_the_world_cannot_hold_or_keep_up_with_is_refused_in_one_line(text, message):
+    with pytest.raises(WorldError) as caught:
+        parse_world(text, "w.yaml")
+    assert str(caught.value) == message
+
+
+def test_the_limits_themselves_and_a_slow_physics_are_accepted():
+    world = parse_world(
+        "physics_rate: 50\n"
+        "obstacles:\n"
+        "- {name: wall, type: wall, position: [-5000, 5000], size: [10000, 0.2, 10000]}\n"
+        "- {name: silo, type: cylinder, position: [4000, 0], radius: 5000, height: 10000}\n"
+        "robots:\n"
+        "- {name: r1, pose: {x: 400, y: -900}, odom_rate: 50, lidar: {rate: 50}}\n"
+    )
+    assert world.obstacles[0].size == (10000.0, 0.2, 10000.0) and world.robots[0].pose.y == -900.0
+    assert world.clock_rate == 50.0  # /clock's default, 100 Hz, at most once per physics step
+    assert parse_world("physics_rate: 240\n").clock_rate == 100.0
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            "physics_rate: 1.0e3\n",
+            "w.yaml:1:15: world: 'physics_rate' must be a number, got '1.0e3' (YAML reads 1.0e3 as text: write 1.0e+3)",
+        ),
+        (
+            "obstacles:\n- {name: crate, type: box, position: [1e2, 0], size: [1, 1, 1]}\n",
+            "w.yaml:2:39: obstacle 'crate': 'position' must contain numbers, got '1e2' (YAML reads 1e2 as text: "
+            "write 1.0e+2)",
+        ),
+        # Quoted as YAML writes a float: text on purpose, nothing to suggest.
+        ("clock_rate: '1.0e+3'\n", "w.yaml:1:13: world: 'clock_rate' must be a number, got '1.0e+3'"),
+    ],
+)
+def test_a_number_yaml_reads_as_text_says_how_to_write_it(text, message):
+    with pytest.raises(WorldError) as caught:
+        parse_world(text, "w.yaml")
+    assert str(caught.value) == message

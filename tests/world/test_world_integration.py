@@ -165,9 +165,23 @@ def test_world_drives_reports_contacts_and_hosts_joining_robots(world):
     assert read_status(status_file)["errors"] == []
 
 
-def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env):
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("robots:\n- {name: robot1, model: {type: tank}}\n", "unknown model type 'tank'"),
+        # Both once ran: a world that hung after its first step, deaf to Ctrl-C (the lidar cutting
+        # the crate into 1 m pieces), and one that slept 1000 s between steps.
+        (
+            "obstacles:\n- {name: crate, type: box, position: [2.5, 1.5], size: [1.0e+300, 0.5, 0.5]}\n"
+            "robots:\n- {name: robot1}\n",
+            "'size' must be at most 10000 m",
+        ),
+        ("physics_rate: 0.001\nrobots:\n- {name: robot1}\n", "'physics_rate' must be at least 50"),
+    ],
+)
+def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env, text, problem):
     config = tmp_path / "world.yaml"
-    config.write_text("robots:\n- {name: robot1, model: {type: tank}}\n")
+    config.write_text(text)
     done = subprocess.run(
         [sys.executable, "-m", "fleet.nodes.world", "--config", str(config)],
         env=ros_env,
@@ -177,7 +191,7 @@ def test_invalid_world_exits_2_with_one_line(tmp_path, ros_env):
     )
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("fleet: error: ") and "unknown model type 'tank'" in lines[0]
+    assert len(lines) == 1 and lines[0].startswith(f"fleet: error: {config}:") and problem in lines[0], lines
 
 
 def test_the_world_reports_each_robots_data_flow(ros_env):
