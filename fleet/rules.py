@@ -57,6 +57,18 @@ def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
     return min(max(MAX_BACKOFF, respawn_delay), base * 2.0 ** min(failures_in_row - 1, 64))
 
 
+# -- the simulated world's limits, one rule for the spec's `world`, robots' `model` and `lidar`, and
+# world.yaml (fleet.spec.model and fleet.world.description both hold them) -------------------------
+MAX_PHYSICS_RATE = 2000.0  # Hz
+MAX_TOPIC_RATE = 1000.0  # Hz of /clock, a robot's odometry or its lidar
+MAX_CMD_TIMEOUT = 60.0  # s a robot's last command holds
+MAX_BEAMS = 4096  # of a lidar
+MAX_LIDAR_RANGE = 1000.0  # m
+MAX_MODEL_RADIUS = 5.0  # m, of the light model's footprint
+MAX_LINEAR_SPEED = 20.0  # m/s
+MAX_ANGULAR_SPEED = 50.0  # rad/s
+
+
 def daemon_agents(extra: list[str] | tuple[str, ...] = ()) -> list[str]:
     """The agents a local daemon runs: `local`, then those `fleet up --agent` named, once each."""
     return list(dict.fromkeys([LOCAL_AGENT, *extra]))

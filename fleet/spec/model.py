@@ -6,7 +6,18 @@ from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
-from fleet.rules import LOCAL_AGENT, MAX_DOMAIN_ID
+from fleet.rules import (
+    LOCAL_AGENT,
+    MAX_ANGULAR_SPEED,
+    MAX_BEAMS,
+    MAX_CMD_TIMEOUT,
+    MAX_DOMAIN_ID,
+    MAX_LIDAR_RANGE,
+    MAX_LINEAR_SPEED,
+    MAX_MODEL_RADIUS,
+    MAX_PHYSICS_RATE,
+    MAX_TOPIC_RATE,
+)
 from fleet.spec.yaml_source import SourceMap
 
 
@@ -69,10 +80,10 @@ class Pose(Measured):
 
 
 class Lidar(Measured):
-    beams: int = Field(360, ge=1, le=4096)
-    rate: float = Field(10.0, gt=0, le=100)
+    beams: int = Field(360, ge=1, le=MAX_BEAMS)
+    rate: float = Field(10.0, gt=0, le=MAX_TOPIC_RATE)
     range_min: float = Field(0.12, ge=0)
-    range_max: float = Field(8.0, gt=0, le=100)
+    range_max: float = Field(8.0, gt=0, le=MAX_LIDAR_RANGE)
 
     integer_fields: ClassVar[frozenset[str]] = frozenset({"beams"})
 
@@ -81,18 +92,18 @@ class Model(Measured):
     """The simulated body: `light` (planar one-body diff drive, cheap) or a URDF from pybullet_data."""
 
     type: Literal["light", "husky", "racecar"] = "light"
-    radius: float = Field(0.2, gt=0, le=5)  # footprint radius of the light model, m
-    max_linear_speed: float = Field(1.0, gt=0, le=20)  # m/s
-    max_angular_speed: float = Field(2.5, gt=0, le=50)  # rad/s
+    radius: float = Field(0.2, gt=0, le=MAX_MODEL_RADIUS)  # footprint radius of the light model, m
+    max_linear_speed: float = Field(1.0, gt=0, le=MAX_LINEAR_SPEED)  # m/s
+    max_angular_speed: float = Field(2.5, gt=0, le=MAX_ANGULAR_SPEED)  # rad/s
 
 
 class ModelOverride(Measured):
     """A robot's changes to the default model: only the fields it sets."""
 
     type: Literal["light", "husky", "racecar"] | None = None
-    radius: float | None = Field(None, gt=0, le=5)
-    max_linear_speed: float | None = Field(None, gt=0, le=20)
-    max_angular_speed: float | None = Field(None, gt=0, le=50)
+    radius: float | None = Field(None, gt=0, le=MAX_MODEL_RADIUS)
+    max_linear_speed: float | None = Field(None, gt=0, le=MAX_LINEAR_SPEED)
+    max_angular_speed: float | None = Field(None, gt=0, le=MAX_ANGULAR_SPEED)
 
 
 class Obstacle(Measured):
@@ -123,11 +134,11 @@ class Obstacle(Measured):
 
 class World(Measured):
     agent: str | None = None  # defaults to defaults.agent
-    physics_rate: float = Field(240.0, gt=0, le=2000)  # Hz
+    physics_rate: float = Field(240.0, gt=0, le=MAX_PHYSICS_RATE)  # Hz
     real_time: bool = True
-    clock_rate: float | None = Field(None, gt=0, le=1000)  # Hz of /clock; default: 100, at most physics_rate
-    odom_rate: float = Field(50.0, gt=0, le=1000)
-    cmd_timeout: float = Field(0.5, gt=0, le=60)
+    clock_rate: float | None = Field(None, gt=0, le=MAX_TOPIC_RATE)  # Hz of /clock; default: 100, at most physics_rate
+    odom_rate: float = Field(50.0, gt=0, le=MAX_TOPIC_RATE)
+    cmd_timeout: float = Field(0.5, gt=0, le=MAX_CMD_TIMEOUT)
     obstacles: list[Obstacle] = []
 
 

@@ -37,7 +37,17 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
-from fleet.rules import ROS_TOKEN
+from fleet.rules import (
+    MAX_ANGULAR_SPEED,
+    MAX_BEAMS,
+    MAX_CMD_TIMEOUT,
+    MAX_LIDAR_RANGE,
+    MAX_LINEAR_SPEED,
+    MAX_MODEL_RADIUS,
+    MAX_PHYSICS_RATE,
+    MAX_TOPIC_RATE,
+    ROS_TOKEN,
+)
 from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, number_text_hint, read_input
 
 MODEL_TYPES = ("light", "husky", "racecar")
@@ -215,11 +225,11 @@ class Pose2D(_FromYaml):
 @dataclass(frozen=True)
 class ModelSpec(_FromYaml):
     type: Annotated[StrictStr, _one_of(MODEL_TYPES, "model type")] = "light"
-    radius: Annotated[Number, Field(gt=0, le=5.0)] = 0.2  # light: footprint circle (other models ignore it)
+    radius: Annotated[Number, Field(gt=0, le=MAX_MODEL_RADIUS)] = 0.2  # light: footprint circle (others ignore it)
     length: Annotated[Number, Field(gt=0, le=10.0)] = 0.99  # URDF models: footprint rectangle (along x)
     width: Annotated[Number, Field(gt=0, le=10.0)] = 0.68
-    max_linear_speed: Annotated[Number, Field(ge=0.0, le=20.0)] = 1.0
-    max_angular_speed: Annotated[Number, Field(ge=0.0, le=50.0)] = 2.5
+    max_linear_speed: Annotated[Number, Field(gt=0.0, le=MAX_LINEAR_SPEED)] = 1.0
+    max_angular_speed: Annotated[Number, Field(gt=0.0, le=MAX_ANGULAR_SPEED)] = 2.5
 
     @model_validator(mode="before")
     @classmethod
@@ -243,10 +253,10 @@ class ModelSpec(_FromYaml):
 
 @dataclass(frozen=True)
 class LidarSpec(_FromYaml):
-    beams: Annotated[StrictInt, _within(1, 10000)] = 360
-    rate: Annotated[Number, Field(gt=0, le=1000.0)] = 10.0
+    beams: Annotated[StrictInt, _within(1, MAX_BEAMS)] = 360
+    rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] = 10.0
     range_min: Annotated[Number, Field(ge=0.0)] = 0.12
-    range_max: Annotated[Number, Field(gt=0, le=1000.0)] = 8.0
+    range_max: Annotated[Number, Field(gt=0, le=MAX_LIDAR_RANGE)] = 8.0
     angle_min: Annotated[Number, Field(ge=-2 * math.pi)] = -math.pi
     # angle_max is exclusive for a full circle (the last beam is angle_max - step).
     angle_max: Annotated[Number, Field(le=2 * math.pi)] = math.pi
@@ -285,8 +295,8 @@ class RobotSpec(_FromYaml):
     model: ModelSpec = field(default_factory=ModelSpec)
     pose: Pose2D = field(default_factory=Pose2D)
     lidar: LidarSpec = field(default_factory=LidarSpec)
-    odom_rate: Annotated[Number, Field(gt=0, le=1000.0)] = DEFAULT_ODOM_RATE
-    cmd_timeout: Annotated[Number, Field(gt=0, le=3600.0)] = 0.5
+    odom_rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] = DEFAULT_ODOM_RATE
+    cmd_timeout: Annotated[Number, Field(gt=0, le=MAX_CMD_TIMEOUT)] = 0.5
     ground_truth: StrictBool = False
 
     def reload_change(self, new: RobotSpec) -> str | None:
@@ -403,9 +413,9 @@ class _WorldFile(_FromYaml):
     obstacles: tuple[_Obstacle, ...] = ()
     robots: tuple[RobotSpec, ...] = ()
     fleet: StrictStr = "fleet"
-    physics_rate: Annotated[Number, Field(le=10000.0), AfterValidator(_fast_enough)] = 240.0
+    physics_rate: Annotated[Number, Field(le=MAX_PHYSICS_RATE), AfterValidator(_fast_enough)] = 240.0
     real_time: StrictBool = True
-    clock_rate: Annotated[Number, Field(gt=0, le=10000.0)] | None = None  # default: default_clock_rate
+    clock_rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] | None = None  # default: default_clock_rate
 
     @model_validator(mode="before")
     @classmethod

@@ -84,7 +84,7 @@ def test_errors_name_file_line_and_problem(text, where, words):
         ("robots:\n- name: r1\n  model: {colour: red}\n", "w.yaml:3:19: unknown key 'colour' in robot 'r1'.model"),
         (
             "robots:\n- name: r1\n  lidar: {beams: 0}\n",
-            "w.yaml:3:18: robot 'r1'.lidar: 'beams' must be in 1..10000, got 0",
+            "w.yaml:3:18: robot 'r1'.lidar: 'beams' must be in 1..4096, got 0",
         ),
         (
             "robots:\n- name: r1\n  ground_truth:\n",
