@@ -60,9 +60,10 @@ def _offset(marked: bytes, field: Field, k: int) -> int:
     marker: the one place, aligned as CDR aligns the field, that holds the whole field's marker.
 
     CDR's padding holds whatever the serializer's memory held before, once an earlier message's
-    marker: a string's terminating NUL followed by three such bytes read as a float32 marker
-    ending in a zero byte, and a robot's scans were written over its header.  An aligned place
-    that takes in padding also takes in the byte before it, a NUL, which no marker has."""
+    marker: a string's terminating NUL and the three padding bytes after it read as the old
+    float32 marker, whose first byte was zero, and a robot's scans were written over its header.
+    An aligned place that takes in such padding takes in the NUL too, which no marker has (the
+    fields fleet writes follow strings only where the padding is shorter than the field)."""
     item = np.dtype("<" + field.dtype)
     needle = np.full(field.count, _marker(field.dtype, k), dtype=item).tobytes()
     found = []
