@@ -807,7 +807,7 @@ def _check_shared(spec: FleetSpec, robots: list[RobotPlan], templates: TemplateS
         world_topics = world_topic_names(plan.namespace for plan in robots if plan.name in simulated)
     for plan in robots:
         for topic in plan.shared:
-            where = Location(templates.find(plan.template))
+            where = Location(templates.find(plan.template), topic.line)
             if topic.name in world_topics:
                 raise TemplateError(
                     f"robot {plan.name} shares {topic.name}, which the world's topics already carry "

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +39,7 @@ class SharedTopic:
     depth: int = 10
     publishes: bool = True  # this robot's nodes publish it
     subscribes: bool = True  # this robot's nodes subscribe to it
+    line: int | None = field(default=None, compare=False)  # of the template's share(...) call
 
     @property
     def route_fields(self) -> dict[str, Any]:

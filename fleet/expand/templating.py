@@ -24,12 +24,14 @@ import importlib.resources
 import json
 import math
 import signal
+import sys
 import threading
 import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import jinja2
@@ -345,7 +347,8 @@ class TemplateSet:
             durability: Any = "volatile",
             depth: Any = 10,
         ) -> SharedMark:
-            shared.append(declare(topic, type, namespace, robot, reliability, durability, depth))
+            declared = declare(topic, type, namespace, robot, reliability, durability, depth)
+            shared.append(replace(declared, line=_calling_line(template)))
             return SharedMark()
 
         try:
@@ -420,6 +423,17 @@ def _prints_identity_only(tree: nodes.Template) -> bool:
     if any(True for _ in tree.find_all(_OPAQUE)):
         return False
     return all(id(name) in printed for name in tree.find_all(nodes.Name) if name.name in _IDENTITY)
+
+
+def _calling_line(template: jinja2.Template) -> int | None:
+    """The line of `template` whose code called the function calling this one (share()), found
+    among the frames of its compiled code, for errors found once the template has rendered."""
+    frame: FrameType | None = sys._getframe(2)
+    while frame is not None:
+        if frame.f_code.co_filename == template.filename:
+            return template.get_corresponding_lineno(frame.f_lineno)
+        frame = frame.f_back
+    return None
 
 
 def _template_line(error: BaseException, path: Path) -> int | None:

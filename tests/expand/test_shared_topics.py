@@ -148,8 +148,11 @@ def test_robots_must_share_a_topic_alike_and_not_the_worlds_own(tmp_path, capsys
     assert "shared topic /fleet/announcements: robots r1 and r2 declare it with QoS" in line, line
     (tmp_path / "w").mkdir()
     world = write_fleet(tmp_path / "w", '"odom", "nav_msgs/msg/Odometry"', world=True)
+    # The call on the template's third line: the error names it (it named the file alone).
+    template = tmp_path / "w" / "my_templates" / "custom.launch.yaml.j2"
+    template.write_text("# shares\n\n" + template.read_text())
     line = render_bad(tmp_path / "w", capsys, world.read_text())
-    assert "shares /a1/odom, which the world's topics already carry" in line, line
+    assert "custom.launch.yaml.j2:3: robot a1 shares /a1/odom, which the world's topics already carry" in line, line
 
 
 def test_a_template_declaring_a_topic_twice_combines_the_roles_and_refuses_another_type(tmp_path, capsys):
