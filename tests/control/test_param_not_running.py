@@ -19,7 +19,9 @@ REFUSAL = "waypoints must be x,y pairs (even length >= 2), got 3 values"  # flee
 AT_ONCE = 15.0  # s: a CLI call on a loaded machine, well short of the 20 to 30 s it waited for services
 # The nodes whose process stops with the controller's: the host's robot, the composite process.
 DOWN_TOGETHER = {"agent": "controller+battery", "robot": "controller+battery", "process": "controller"}
-BACKOFF_RESTARTS = 4  # then the next respawn is seconds away (the backoff doubles per quick failure)
+# The template's respawn_delay is 0.5 s, doubled at each quick failure: a node that has just gone
+# into backoff after its 5th restart is respawned 0.5 * 2**5 = 16 s later.
+FRESH_BACKOFF_RESTARTS = 5
 
 
 def param(cluster, *args):
@@ -44,14 +46,22 @@ def test_param_on_a_node_in_backoff_fails_at_once_saying_so(host_a, isolation):
         row = robot(cluster.view("stuck"), "robot2")
         return next(node for node in row.nodes if node["name"] == "controller")
 
-    # Between two exits a node's process runs for a moment; once it has failed a few times in a
-    # row, its backoff leaves seconds for the commands below.
-    poll(
+    # Between two exits a node's process runs for a moment, and a call then waits for its services
+    # as for any running node (seen: the backoff seen by a poll ended before the command came).
+    # So the commands go in at the start of a backoff long enough for them all: the poll waits
+    # for the one before it, then for the moment the node goes into it.
+    before = poll(
         controller,
-        until=lambda node: node["state"] == "backoff" and node["restarts"] >= BACKOFF_RESTARTS,
+        until=lambda node: node["state"] == "backoff" and node["restarts"] == FRESH_BACKOFF_RESTARTS - 1,
         timeout=120,
         retry_on=(StopIteration,),  # not in the view yet
-        what=f"robot2's controller in backoff after {BACKOFF_RESTARTS} restarts",
+        what=f"robot2's controller in backoff after {FRESH_BACKOFF_RESTARTS - 1} restarts",
+    )
+    poll(
+        controller,
+        until=lambda node: node["state"] == "backoff" and node["restarts"] > before["restarts"],
+        timeout=60,
+        what=f"robot2's controller going into backoff after {FRESH_BACKOFF_RESTARTS} restarts",
     )
 
     got, took = param(cluster, "get", "robot2", "controller", "max_speed")
