@@ -25,7 +25,7 @@ def run(listen: str, root: Path, zenoh_config: Path | None, extra_agents: list[s
 
     from fleet.server.agent import Agent
     from fleet.server.router import Registry, serve_router
-    from fleet.wire.session import open_router
+    from fleet.wire.session import open_router, router_config
 
     root = root.resolve()  # its agents change the working directory (fleet.server.agent)
     registry = Registry(registry_file(router_dir(root)))
@@ -37,7 +37,7 @@ def run(listen: str, root: Path, zenoh_config: Path | None, extra_agents: list[s
     for agent in others:
         agent.stop_event = stop  # one of them ending (a fault) ends the daemon, not just itself
     threads = [threading.Thread(target=agent.run, name=f"fleet-agent-{agent.name}") for agent in others]
-    with open_router([listen], zenoh_config) as router:
+    with open_router(router_config([listen], zenoh_config)) as router:
         entities = serve_router(router, registry)
         try:
             for thread in threads:

@@ -180,12 +180,13 @@ def serve_router(session, registry: Registry):
 
 
 def run_router(listen: list[str], zenoh_config: Path | None, state_dir: Path | None, stop: threading.Event) -> None:
-    from fleet.wire.session import open_router, router_listens
+    from fleet.wire.session import open_router, router_config, router_listens
 
     registry = Registry(registry_file(state_dir) if state_dir else None)
-    with open_router(listen, zenoh_config) as session:
+    config = router_config(listen, zenoh_config)  # read once: its files and certificates are checked
+    with open_router(config) as session:
         entities = serve_router(session, registry)
-        log.info("router listening on %s", ", ".join(router_listens(listen, zenoh_config)))
+        log.info("router listening on %s", ", ".join(router_listens(config)))
         while not stop.wait(0.5):  # a timed wait lets signal handlers run
             pass
         for entity in entities:

@@ -273,10 +273,9 @@ def router_config(listen: list[str], user_config: Path | None = None):
     return config
 
 
-def router_listens(listen: list[str], user_config: Path | None = None) -> list[str]:
-    """The endpoints a router opened with these arguments listens on (the config file's when
-    `listen` is empty), for its log."""
-    endpoints = json.loads(router_config(listen, user_config).get_json("listen/endpoints"))
+def router_listens(config) -> list[str]:
+    """The endpoints a router_config listens on (the user's file's when no endpoint was given)."""
+    endpoints = json.loads(config.get_json("listen/endpoints"))
     if isinstance(endpoints, dict):  # Zenoh's per-mode form, {router: [...], peer: [...]}
         endpoints = endpoints.get("router", [])
     return [str(endpoint) for endpoint in endpoints]
@@ -380,13 +379,15 @@ def open_client_retrying(
     return None
 
 
-def open_router(listen: list[str], user_config: Path | None = None):
+def open_router(config):
+    """A router's session on a router_config."""
     import zenoh
 
     try:
-        return zenoh.open(router_config(listen, user_config))
+        return zenoh.open(config)
     except zenoh.ZError as error:
-        raise ControlError(f"cannot start the router on {', '.join(listen)}: {_first_line(error)}") from None
+        where = ", ".join(router_listens(config))
+        raise ControlError(f"cannot start the router on {where}: {_first_line(error)}") from None
 
 
 def _first_line(error: Exception) -> str:

@@ -71,7 +71,7 @@ def test_the_router_names_the_endpoints_it_listens_on_from_its_config_file(tmp_p
     """Its log said `router listening on ` with nothing after it when only the file named them."""
     config_file = tmp_path / "router.json5"
     config_file.write_text('{listen: {endpoints: ["tcp/127.0.0.1:17481"]}}')
-    assert router_listens([], config_file) == ["tcp/127.0.0.1:17481"]
+    assert router_listens(router_config([], config_file)) == ["tcp/127.0.0.1:17481"]
     config_file.write_text('{listen: {endpoints: {router: ["tcp/127.0.0.1:17482"], peer: []}}}')
-    assert router_listens([], config_file) == ["tcp/127.0.0.1:17482"]
-    assert router_listens(["tcp/127.0.0.1:17483"], config_file) == ["tcp/127.0.0.1:17483"]
+    assert router_listens(router_config([], config_file)) == ["tcp/127.0.0.1:17482"]
+    assert router_listens(router_config(["tcp/127.0.0.1:17483"], config_file)) == ["tcp/127.0.0.1:17483"]
