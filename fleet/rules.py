@@ -57,8 +57,10 @@ def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
     return min(max(MAX_BACKOFF, respawn_delay), base * 2.0 ** min(failures_in_row - 1, 64))
 
 
-# -- the simulated world's limits, one rule for the spec's `world`, robots' `model` and `lidar`, and
-# world.yaml (fleet.spec.model and fleet.world.description both hold them) -------------------------
+# -- the simulated world's defaults and limits, one rule for the spec's `world`, robots' `model` and
+# `lidar`, and world.yaml (fleet.spec.model and fleet.world.description both hold them) ------------
+DEFAULT_PHYSICS_RATE = 240.0  # Hz
+DEFAULT_ODOM_RATE = 50.0  # Hz of each robot's odometry
 MAX_PHYSICS_RATE = 2000.0  # Hz
 MAX_TOPIC_RATE = 1000.0  # Hz of /clock, a robot's odometry or its lidar
 MAX_CMD_TIMEOUT = 60.0  # s a robot's last command holds

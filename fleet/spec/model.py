@@ -7,6 +7,8 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
 from fleet.rules import (
+    DEFAULT_ODOM_RATE,
+    DEFAULT_PHYSICS_RATE,
     LOCAL_AGENT,
     MAX_ANGULAR_SPEED,
     MAX_BEAMS,
@@ -134,10 +136,11 @@ class Obstacle(Measured):
 
 class World(Measured):
     agent: str | None = None  # defaults to defaults.agent
-    physics_rate: float = Field(240.0, gt=0, le=MAX_PHYSICS_RATE)  # Hz
+    physics_rate: float = Field(DEFAULT_PHYSICS_RATE, gt=0, le=MAX_PHYSICS_RATE)  # Hz
     real_time: bool = True
-    clock_rate: float | None = Field(None, gt=0, le=MAX_TOPIC_RATE)  # Hz of /clock; default: 100, at most physics_rate
-    odom_rate: float = Field(50.0, gt=0, le=MAX_TOPIC_RATE)
+    # Hz of /clock, at most physics_rate; None: fleet.world.description.default_clock_rate
+    clock_rate: float | None = Field(None, gt=0, le=MAX_TOPIC_RATE)
+    odom_rate: float = Field(DEFAULT_ODOM_RATE, gt=0, le=MAX_TOPIC_RATE)
     cmd_timeout: float = Field(0.5, gt=0, le=MAX_CMD_TIMEOUT)
     obstacles: list[Obstacle] = []
 

@@ -38,6 +38,8 @@ from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
 from fleet.rules import (
+    DEFAULT_ODOM_RATE,
+    DEFAULT_PHYSICS_RATE,
     MAX_ANGULAR_SPEED,
     MAX_BEAMS,
     MAX_CMD_TIMEOUT,
@@ -79,7 +81,6 @@ MAX_OBSTACLE_SIZE = 2 * WORLD_EXTENT  # m: a wall may cross the whole world
 # step at a time, so a robot's cmd_timeout (0.5 s by default) and Ctrl-C are seen within 20 ms
 # (at physics_rate 0.001 the world slept 1000 s per step and did not stop on Ctrl-C).
 MIN_PHYSICS_RATE = 50.0  # Hz
-DEFAULT_ODOM_RATE = 50.0  # Hz
 DEFAULT_CLOCK_RATE = 100.0  # Hz of /clock, or physics_rate when that is lower
 
 # Lidars, contacts, trails and the pick-up of the robots' commands run on slots of whole physics
@@ -413,7 +414,7 @@ class _WorldFile(_FromYaml):
     obstacles: tuple[_Obstacle, ...] = ()
     robots: tuple[RobotSpec, ...] = ()
     fleet: StrictStr = "fleet"
-    physics_rate: Annotated[Number, Field(le=MAX_PHYSICS_RATE), AfterValidator(_fast_enough)] = 240.0
+    physics_rate: Annotated[Number, Field(le=MAX_PHYSICS_RATE), AfterValidator(_fast_enough)] = DEFAULT_PHYSICS_RATE
     real_time: StrictBool = True
     clock_rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] | None = None  # default: default_clock_rate
 
