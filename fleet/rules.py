@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import os
 import re
+import typing
 from pathlib import Path
+from typing import Literal
 
 # ROS 2 name tokens (rmw_validate_node_name / namespace tokens): letters, digits, underscores,
 # not starting with a digit.
@@ -61,6 +63,21 @@ def backoff_delay(respawn_delay: float, failures_in_row: int) -> float:
 # `lidar`, and world.yaml (fleet.spec.model and fleet.world.description both hold them) ------------
 DEFAULT_PHYSICS_RATE = 240.0  # Hz
 DEFAULT_ODOM_RATE = 50.0  # Hz of each robot's odometry
+DEFAULT_CMD_TIMEOUT = 0.5  # s a robot's last command holds
+# A robot's simulated body: `light` (a planar one-body diff drive, cheap) or a URDF of pybullet_data.
+ModelType = Literal["light", "husky", "racecar"]
+MODEL_TYPES: tuple[str, ...] = typing.get_args(ModelType)
+DEFAULT_MODEL_TYPE: ModelType = "light"
+DEFAULT_MODEL_RADIUS = 0.2  # m, the light model's footprint
+DEFAULT_LINEAR_SPEED = 1.0  # m/s, a model's top speed
+DEFAULT_ANGULAR_SPEED = 2.5  # rad/s
+ObstacleKind = Literal["box", "wall", "cylinder"]
+OBSTACLE_TYPES: tuple[str, ...] = typing.get_args(ObstacleKind)
+# A robot's lidar.
+DEFAULT_BEAMS = 360
+DEFAULT_LIDAR_RATE = 10.0  # Hz
+DEFAULT_RANGE_MIN = 0.12  # m
+DEFAULT_RANGE_MAX = 8.0  # m
 MAX_PHYSICS_RATE = 2000.0  # Hz
 MAX_TOPIC_RATE = 1000.0  # Hz of /clock, a robot's odometry or its lidar
 MAX_CMD_TIMEOUT = 60.0  # s a robot's last command holds

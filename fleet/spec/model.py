@@ -7,8 +7,17 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
 from fleet.rules import (
+    DEFAULT_ANGULAR_SPEED,
+    DEFAULT_BEAMS,
+    DEFAULT_CMD_TIMEOUT,
+    DEFAULT_LIDAR_RATE,
+    DEFAULT_LINEAR_SPEED,
+    DEFAULT_MODEL_RADIUS,
+    DEFAULT_MODEL_TYPE,
     DEFAULT_ODOM_RATE,
     DEFAULT_PHYSICS_RATE,
+    DEFAULT_RANGE_MAX,
+    DEFAULT_RANGE_MIN,
     LOCAL_AGENT,
     MAX_ANGULAR_SPEED,
     MAX_BEAMS,
@@ -19,6 +28,8 @@ from fleet.rules import (
     MAX_MODEL_RADIUS,
     MAX_PHYSICS_RATE,
     MAX_TOPIC_RATE,
+    ModelType,
+    ObstacleKind,
 )
 from fleet.spec.yaml_source import SourceMap
 
@@ -82,10 +93,10 @@ class Pose(Measured):
 
 
 class Lidar(Measured):
-    beams: int = Field(360, ge=1, le=MAX_BEAMS)
-    rate: float = Field(10.0, gt=0, le=MAX_TOPIC_RATE)
-    range_min: float = Field(0.12, ge=0)
-    range_max: float = Field(8.0, gt=0, le=MAX_LIDAR_RANGE)
+    beams: int = Field(DEFAULT_BEAMS, ge=1, le=MAX_BEAMS)
+    rate: float = Field(DEFAULT_LIDAR_RATE, gt=0, le=MAX_TOPIC_RATE)
+    range_min: float = Field(DEFAULT_RANGE_MIN, ge=0)
+    range_max: float = Field(DEFAULT_RANGE_MAX, gt=0, le=MAX_LIDAR_RANGE)
 
     integer_fields: ClassVar[frozenset[str]] = frozenset({"beams"})
 
@@ -93,16 +104,16 @@ class Lidar(Measured):
 class Model(Measured):
     """The simulated body: `light` (planar one-body diff drive, cheap) or a URDF from pybullet_data."""
 
-    type: Literal["light", "husky", "racecar"] = "light"
-    radius: float = Field(0.2, gt=0, le=MAX_MODEL_RADIUS)  # footprint radius of the light model, m
-    max_linear_speed: float = Field(1.0, gt=0, le=MAX_LINEAR_SPEED)  # m/s
-    max_angular_speed: float = Field(2.5, gt=0, le=MAX_ANGULAR_SPEED)  # rad/s
+    type: ModelType = DEFAULT_MODEL_TYPE
+    radius: float = Field(DEFAULT_MODEL_RADIUS, gt=0, le=MAX_MODEL_RADIUS)  # footprint radius of the light model, m
+    max_linear_speed: float = Field(DEFAULT_LINEAR_SPEED, gt=0, le=MAX_LINEAR_SPEED)  # m/s
+    max_angular_speed: float = Field(DEFAULT_ANGULAR_SPEED, gt=0, le=MAX_ANGULAR_SPEED)  # rad/s
 
 
 class ModelOverride(Measured):
     """A robot's changes to the default model: only the fields it sets."""
 
-    type: Literal["light", "husky", "racecar"] | None = None
+    type: ModelType | None = None
     radius: float | None = Field(None, gt=0, le=MAX_MODEL_RADIUS)
     max_linear_speed: float | None = Field(None, gt=0, le=MAX_LINEAR_SPEED)
     max_angular_speed: float | None = Field(None, gt=0, le=MAX_ANGULAR_SPEED)
@@ -110,7 +121,7 @@ class ModelOverride(Measured):
 
 class Obstacle(Measured):
     name: str
-    type: Literal["box", "wall", "cylinder"]
+    type: ObstacleKind
     position: tuple[float, float]  # x, y of the centre, m
     yaw: float = 0.0
     size: tuple[float, float, float] | None = None  # box/wall: x, y, z extent, m
@@ -141,7 +152,7 @@ class World(Measured):
     # Hz of /clock, at most physics_rate; None: fleet.world.description.default_clock_rate
     clock_rate: float | None = Field(None, gt=0, le=MAX_TOPIC_RATE)
     odom_rate: float = Field(DEFAULT_ODOM_RATE, gt=0, le=MAX_TOPIC_RATE)
-    cmd_timeout: float = Field(0.5, gt=0, le=MAX_CMD_TIMEOUT)
+    cmd_timeout: float = Field(DEFAULT_CMD_TIMEOUT, gt=0, le=MAX_CMD_TIMEOUT)
     obstacles: list[Obstacle] = []
 
 

@@ -38,8 +38,17 @@ from pydantic_core import PydanticCustomError
 
 from fleet.errors import FleetError, Location, SpecError
 from fleet.rules import (
+    DEFAULT_ANGULAR_SPEED,
+    DEFAULT_BEAMS,
+    DEFAULT_CMD_TIMEOUT,
+    DEFAULT_LIDAR_RATE,
+    DEFAULT_LINEAR_SPEED,
+    DEFAULT_MODEL_RADIUS,
+    DEFAULT_MODEL_TYPE,
     DEFAULT_ODOM_RATE,
     DEFAULT_PHYSICS_RATE,
+    DEFAULT_RANGE_MAX,
+    DEFAULT_RANGE_MIN,
     MAX_ANGULAR_SPEED,
     MAX_BEAMS,
     MAX_CMD_TIMEOUT,
@@ -48,14 +57,14 @@ from fleet.rules import (
     MAX_MODEL_RADIUS,
     MAX_PHYSICS_RATE,
     MAX_TOPIC_RATE,
+    MODEL_TYPES,
+    OBSTACLE_TYPES,
     ROS_TOKEN,
 )
 from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml, number_text_hint, read_input
 
-MODEL_TYPES = ("light", "husky", "racecar")
 # Footprint rectangles (length along x, width) of the URDF models, measured from their URDFs.
 URDF_FOOTPRINTS = {"husky": (0.99, 0.68), "racecar": (0.55, 0.30)}
-OBSTACLE_TYPES = ("box", "wall", "cylinder")
 
 # -- the world's extent and pace: the rules every world.yaml (and so every spec's world) obeys --------
 
@@ -225,12 +234,12 @@ class Pose2D(_FromYaml):
 
 @dataclass(frozen=True)
 class ModelSpec(_FromYaml):
-    type: Annotated[StrictStr, _one_of(MODEL_TYPES, "model type")] = "light"
-    radius: Annotated[Number, Field(gt=0, le=MAX_MODEL_RADIUS)] = 0.2  # light: footprint circle (others ignore it)
+    type: Annotated[StrictStr, _one_of(MODEL_TYPES, "model type")] = DEFAULT_MODEL_TYPE
+    radius: Annotated[Number, Field(gt=0, le=MAX_MODEL_RADIUS)] = DEFAULT_MODEL_RADIUS  # light: footprint circle
     length: Annotated[Number, Field(gt=0, le=10.0)] = 0.99  # URDF models: footprint rectangle (along x)
     width: Annotated[Number, Field(gt=0, le=10.0)] = 0.68
-    max_linear_speed: Annotated[Number, Field(gt=0.0, le=MAX_LINEAR_SPEED)] = 1.0
-    max_angular_speed: Annotated[Number, Field(gt=0.0, le=MAX_ANGULAR_SPEED)] = 2.5
+    max_linear_speed: Annotated[Number, Field(gt=0.0, le=MAX_LINEAR_SPEED)] = DEFAULT_LINEAR_SPEED
+    max_angular_speed: Annotated[Number, Field(gt=0.0, le=MAX_ANGULAR_SPEED)] = DEFAULT_ANGULAR_SPEED
 
     @model_validator(mode="before")
     @classmethod
@@ -254,10 +263,10 @@ class ModelSpec(_FromYaml):
 
 @dataclass(frozen=True)
 class LidarSpec(_FromYaml):
-    beams: Annotated[StrictInt, _within(1, MAX_BEAMS)] = 360
-    rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] = 10.0
-    range_min: Annotated[Number, Field(ge=0.0)] = 0.12
-    range_max: Annotated[Number, Field(gt=0, le=MAX_LIDAR_RANGE)] = 8.0
+    beams: Annotated[StrictInt, _within(1, MAX_BEAMS)] = DEFAULT_BEAMS
+    rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] = DEFAULT_LIDAR_RATE
+    range_min: Annotated[Number, Field(ge=0.0)] = DEFAULT_RANGE_MIN
+    range_max: Annotated[Number, Field(gt=0, le=MAX_LIDAR_RANGE)] = DEFAULT_RANGE_MAX
     angle_min: Annotated[Number, Field(ge=-2 * math.pi)] = -math.pi
     # angle_max is exclusive for a full circle (the last beam is angle_max - step).
     angle_max: Annotated[Number, Field(le=2 * math.pi)] = math.pi
@@ -297,7 +306,7 @@ class RobotSpec(_FromYaml):
     pose: Pose2D = field(default_factory=Pose2D)
     lidar: LidarSpec = field(default_factory=LidarSpec)
     odom_rate: Annotated[Number, Field(gt=0, le=MAX_TOPIC_RATE)] = DEFAULT_ODOM_RATE
-    cmd_timeout: Annotated[Number, Field(gt=0, le=MAX_CMD_TIMEOUT)] = 0.5
+    cmd_timeout: Annotated[Number, Field(gt=0, le=MAX_CMD_TIMEOUT)] = DEFAULT_CMD_TIMEOUT
     ground_truth: StrictBool = False
 
     def reload_change(self, new: RobotSpec) -> str | None:
