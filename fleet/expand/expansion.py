@@ -18,6 +18,7 @@ from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
 from fleet.expand.parameters import (
     INLINE_LAYER,
+    LAYERS,
     Override,
     ParameterLayers,
     Setting,
@@ -29,7 +30,7 @@ from fleet.expand.python_launch import python_source
 from fleet.expand.rendered_launch import LaunchRenderer, params_file_reference, parse_rendered, rendered_launch_path
 from fleet.expand.shared import SharedTopic, conflict
 from fleet.expand.templating import TemplateSet, argument_problem, builtin_template_dirs
-from fleet.nodes.parameters import declared
+from fleet.nodes.parameters import ParamSpec, declared, rules
 from fleet.rules import (
     LAUNCH_SUFFIX,
     PARAMS_SUFFIX,
@@ -197,11 +198,13 @@ def expand_fleet(spec: FleetSpec, sets: list[str] | tuple[str, ...] = ()) -> Exp
 
 
 def _check_node_values(plan: RobotPlan, checked: dict[str, set[Any]]) -> None:
-    """Refuse a value one of fleet's own nodes (package fleet_nodes) would refuse at start, of
-    another type than it declares or out of its range (fleet.nodes.parameters, which the nodes
-    declare), at the place the value the node gets is written: the spec, --set, the template's
-    defaults, or the launch file when it gives the parameter inline.  A node of another package
-    is left alone: fleet cannot know its parameters.
+    """Refuse values one of fleet's own nodes (package fleet_nodes) would refuse at start, by its
+    own declarations and rules (fleet.nodes.parameters, which the node declares and checks by): a
+    value of another type than declared or out of its range, at the place the value the node gets
+    is written (the spec, --set, the template's defaults, or the launch file when it gives the
+    parameter inline); then the node's values together, as it has them (its defaults filled in),
+    by its rules (_check_together).  A node of another package is left alone: fleet cannot know
+    its parameters; so is a value only the agent's computer can tell (a `$(env ...)` inline).
 
     Cheap for 10,000 robots: `checked` holds, per executable, the nodes of shared layers already
     checked and each history of a value already checked (robots share the histories of values
@@ -213,26 +216,64 @@ def _check_node_values(plan: RobotPlan, checked: dict[str, set[Any]]) -> None:
             continue
         inline = plan.inline.get(node.name, {})
         for name, given in inline.items():
-            if (spec := specs.get(name)) is not None and (problem := spec.problem(given.value)) is not None:
+            if (spec := specs.get(name)) is not None and given.known and (problem := spec.problem(given.value)):
                 raise SpecError(_refused_value(plan, node, name, problem), plan.launch_place(given.where))
         if node.name in plan.without_file:  # none of the parameter file reaches it
+            _check_together(plan, node, specs, {})
             continue
         seen = checked.get(node.executable)
         if seen is None:
             seen = checked[node.executable] = set()
         if layers.same_as_origin(node.name):
-            key = (id(layers.origin), node.name, tuple(inline))
+            # Inline values may differ by robot (a template writes {{ robot.name }} into one).
+            key = (id(layers.origin), node.name, tuple((name, repr(given.value)) for name, given in inline.items()))
             if key in seen:
                 continue
             seen.add(key)
+        from_file = {}
         for name, spec in specs.items():
             settings = layers.history.get((node.name, name))
             # None: the node keeps its own default; inline: the launch file's value, checked above.
-            if settings is None or id(settings) in seen or name in inline:
+            if settings is None or name in inline:
+                continue
+            from_file[name] = settings[-1]
+            if id(settings) in seen:
                 continue
             seen.add(id(settings))  # the plans hold every history until the expansion is made
             if (problem := spec.problem(settings[-1].value)) is not None:
                 raise SpecError(_refused_value(plan, node, name, problem), Location(settings[-1].source))
+        _check_together(plan, node, specs, from_file)
+
+
+# Which of the values a rule reads its refusal is placed at: the one given last in precedence
+# (inline in the launch file over --set over the robot's over the defaults' over the template's).
+_PRECEDENCE = {layer: rank for rank, layer in enumerate((*LAYERS, INLINE_LAYER))}
+
+
+def _check_together(
+    plan: RobotPlan, node: NodeOutline, specs: dict[str, ParamSpec], from_file: dict[str, Setting]
+) -> None:
+    """Refuse the values a node gets (from the parameter file, `from_file`, or inline; each of
+    them of its declared type and in range, checked before) when its rules refuse them together,
+    with its defaults for those not given, as the node has them when it checks.  Placed at the
+    value given last in precedence of those the refusing rule reads.  A rule that reads a value
+    only the agent's computer can tell is left to the node."""
+    given = dict(from_file)
+    unknown = set()
+    for name, setting in plan.inline.get(node.name, {}).items():
+        if name in specs:
+            given[name] = Setting(setting.value, INLINE_LAYER, str(plan.launch_place(setting.where)))
+            if not setting.known:
+                unknown.add(name)
+    values = {name: spec.coerce(given[name].value) if name in given else spec.default for name, spec in specs.items()}
+    for rule in rules(node.package, node.executable):
+        read = [given[name] for name in rule.names if name in given]
+        # Of the node's defaults alone (which pass its rules: tests/nodes), or told on the agent.
+        if not read or unknown.intersection(rule.names):
+            continue
+        if (problem := rule.problem(values)) is not None:
+            blamed = max(read, key=lambda setting: _PRECEDENCE[setting.layer])
+            raise SpecError(_refused_value(plan, node, rule.names[0], problem), Location(blamed.source))
 
 
 def _refused_value(plan: RobotPlan, node: NodeOutline, name: str, problem: str) -> str:

@@ -22,6 +22,7 @@ from fleet.nodes.common import ERROR, OK, WARN, FleetNode, main_for, seconds
 
 class BatteryNode(FleetNode):
     PARAMETERS = parameters.BATTERY
+    RULES = parameters.BATTERY_RULES
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__("battery", **node_kwargs)
@@ -36,16 +37,6 @@ class BatteryNode(FleetNode):
         self.create_subscription(Odometry, "odom", self._on_odom, qos_profile_sensor_data)
         self.battery_pub = self.create_publisher(BatteryState, "battery", 10)
         self._timer = self.create_timer(1.0 / p["publish_rate"], self._publish)
-
-    def validate(self, values: dict[str, Any]) -> str | None:
-        if values["capacity"] <= 0.0:
-            return "parameter 'capacity' must be > 0"
-        if values["critical_threshold"] > values["low_threshold"]:
-            return (
-                f"critical_threshold ({values['critical_threshold']}) must be <= "
-                f"low_threshold ({values['low_threshold']})"
-            )
-        return None
 
     def on_parameters_changed(self, names: set[str]) -> None:
         self._integrate()  # the energy used so far was drawn under the old parameters

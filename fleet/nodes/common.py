@@ -1,10 +1,10 @@
 """What every fleet node shares: parameter declaration and checking, diagnostics, and the
 run/spin/shutdown loop of an executable.
 
-A node subclasses FleetNode, lists its parameters as ParamSpecs (declared in the pure module
-fleet.nodes.parameters, which `fleet render` checks values by too), may add a cross-parameter
-check (validate) and a reaction to live changes (on_parameters_changed), and reports its state
-through diagnose().  run() turns node factories into a process that exits 0 when asked to stop
+A node subclasses FleetNode, lists its parameters as ParamSpecs and its checks of them together
+as Rules (both in the pure module fleet.nodes.parameters, which `fleet render` checks values by
+too), may add a reaction to live changes (on_parameters_changed), and reports its state through
+diagnose().  run() turns node factories into a process that exits 0 when asked to stop
 and 2 with a one-line reason when its configuration is invalid.
 """
 
@@ -26,7 +26,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from fleet.nodes.batch_executor import BatchExecutor
-from fleet.nodes.parameters import ParamSpec
+from fleet.nodes.parameters import ParamSpec, Rule, refusal
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
@@ -44,6 +44,7 @@ class FleetNode(Node):
     """A Node with checked parameters (cached in self.params) and 1 Hz diagnostics."""
 
     PARAMETERS: Sequence[ParamSpec] = ()
+    RULES: Sequence[Rule] = ()
 
     def __init__(self, default_name: str, **node_kwargs: Any) -> None:
         super().__init__(default_name, **node_kwargs)
@@ -89,11 +90,12 @@ class FleetNode(Node):
         return values
 
     def validate(self, values: dict[str, Any]) -> str | None:
-        """Checks a range cannot express (lengths, one parameter against another).
+        """Checks a range cannot express (lengths, one parameter against another): the node's
+        RULES, which `fleet render` checks a robot's values by too.
 
         Returns the reason for refusing values, or None to accept them.
         """
-        return None
+        return refusal(self.RULES, values)
 
     def on_parameters_changed(self, names: set[str]) -> None:
         """Called after a live change was accepted and self.params updated."""

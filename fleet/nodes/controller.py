@@ -23,6 +23,7 @@ from fleet.nodes.common import ERROR, OK, WARN, FleetNode, main_for
 
 class ControllerNode(FleetNode):
     PARAMETERS = parameters.CONTROLLER
+    RULES = parameters.CONTROLLER_RULES
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__("controller", **node_kwargs)
@@ -41,9 +42,6 @@ class ControllerNode(FleetNode):
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.goal_pub = self.create_publisher(PointStamped, "~/goal", latched)
         self._timer = self.create_timer(1.0 / self.params["control_rate"], self._tick)
-
-    def validate(self, values: dict[str, Any]) -> str | None:
-        return models.check_waypoints(values["waypoints"])
 
     def on_parameters_changed(self, names: set[str]) -> None:
         if "waypoints" in names:

@@ -31,17 +31,9 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
 
 
 def pairs(flat: Sequence[float]) -> list[tuple[float, float]]:
-    """[x0, y0, x1, y1, ...] -> [(x0, y0), (x1, y1), ...]; the caller checked the length."""
+    """[x0, y0, x1, y1, ...] -> [(x0, y0), (x1, y1), ...]; the node checked the length
+    (fleet.nodes.parameters.CONTROLLER_RULES)."""
     return [(float(flat[i]), float(flat[i + 1])) for i in range(0, len(flat) - 1, 2)]
-
-
-def check_waypoints(flat: Sequence[float]) -> str | None:
-    """Why a flat waypoint list is unusable, or None when it is fine."""
-    if len(flat) < 2 or len(flat) % 2:
-        return f"waypoints must be x,y pairs (even length >= 2), got {len(flat)} values"
-    if not all(math.isfinite(v) for v in flat):
-        return "waypoints must be finite numbers"
-    return None
 
 
 def steer(

@@ -1,15 +1,19 @@
-"""The parameters fleet's nodes (package fleet_nodes) declare, and what a value must be for a
-node to take it at start: of the declared type, within the declared range.
+"""The parameters fleet's nodes (package fleet_nodes) declare, and what values a node takes at
+start: each of the declared type, within the declared range (ParamSpec), and all of them together
+passing the node's checks that a range cannot express (Rule: waypoints in x,y pairs, the battery's
+critical threshold at most its low one).
 
-Pure (no rclpy at import): the nodes declare these (fleet.nodes.common.FleetNode), and `fleet
-render` refuses by the same declarations what a node would refuse when it starts
-(fleet.expand.expansion), so the two cannot drift apart.  The rules are rclpy's own for a
-declared parameter (rclpy.node.Node._apply_descriptor), which tests/nodes compare them with.
+Pure (no rclpy at import): the nodes declare these and check by these rules, at start and on
+every live change (fleet.nodes.common.FleetNode), and `fleet render` refuses by the same
+declarations and rules what a node would refuse when it starts (fleet.expand.expansion), so the
+two cannot drift apart.  The declarations follow rclpy's own rules for a declared parameter
+(rclpy.node.Node._apply_descriptor), which tests/nodes compare them with.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -136,10 +140,67 @@ SAFETY = (
     ParamSpec("scan_timeout", 1.0, "Zero output when no scan came for this long (s)", 0.05, 60.0),
 )
 
+
+@dataclass(frozen=True)
+class Rule:
+    """A check a node makes of its parameters that their declarations cannot express: a length, a
+    bound that is not in, one parameter against another.  It is given the values of `names` (of
+    their declared types and in range: the node checks those first) and says what is wrong, in
+    words to follow the first name ("must be x,y pairs ..."), or None."""
+
+    names: tuple[str, ...]  # the parameters it reads; the first is the one its words are about
+    check: Callable[..., str | None]
+
+    def problem(self, values: Mapping[str, Any]) -> str | None:
+        return self.check(*(values[name] for name in self.names))
+
+
+def _waypoints_problem(waypoints: Sequence[float]) -> str | None:
+    if len(waypoints) < 2 or len(waypoints) % 2:
+        return f"must be x,y pairs (even length >= 2), got {len(waypoints)} values"
+    if not all(math.isfinite(v) for v in waypoints):
+        return "must be finite numbers"
+    return None
+
+
+def _capacity_problem(capacity: float) -> str | None:
+    # A battery of no capacity has no charge fraction (the model divides by it), and the declared
+    # range cannot say so: rclpy's ranges include their bounds.
+    return None if capacity > 0.0 else f"must be > 0, got {capacity!r}"
+
+
+def _thresholds_problem(critical: float, low: float) -> str | None:
+    return None if critical <= low else f"({critical!r}) must be <= low_threshold ({low!r})"
+
+
+CONTROLLER_RULES = (Rule(("waypoints",), _waypoints_problem),)
+BATTERY_RULES = (
+    Rule(("capacity",), _capacity_problem),
+    Rule(("critical_threshold", "low_threshold"), _thresholds_problem),
+)
+SAFETY_RULES: tuple[Rule, ...] = ()
+
+
+def refusal(rules: Sequence[Rule], values: Mapping[str, Any]) -> str | None:
+    """Why a node refuses `values` (every parameter it declares) by its `rules`, in the words it
+    says it in ("waypoints must be x,y pairs ..."); None when it takes them."""
+    for rule in rules:
+        if (problem := rule.problem(values)) is not None:
+            return f"{rule.names[0]} {problem}"
+    return None
+
+
 # Executable name (fleet.nodes.NODES) -> parameter name -> its declaration.
 _DECLARED: dict[str, dict[str, ParamSpec]] = {
     executable: {spec.name: spec for spec in specs}
     for executable, specs in (("controller", CONTROLLER), ("battery", BATTERY), ("safety", SAFETY))
+}
+
+
+_RULES: dict[str, tuple[Rule, ...]] = {
+    "controller": CONTROLLER_RULES,
+    "battery": BATTERY_RULES,
+    "safety": SAFETY_RULES,
 }
 
 
@@ -148,3 +209,9 @@ def declared(package: str, executable: str) -> dict[str, ParamSpec] | None:
     node of another package (or an executable fleet_nodes has not), whose parameters fleet
     cannot know."""
     return _DECLARED.get(executable) if package == PACKAGE else None
+
+
+def rules(package: str, executable: str) -> tuple[Rule, ...]:
+    """The checks of its parameters together a node started as `package` `executable` makes at
+    start (none for a node of another package: fleet cannot know them)."""
+    return _RULES.get(executable, ()) if package == PACKAGE else ()

@@ -725,6 +725,13 @@ class InlineSetting:
     value: Any
     where: Location
 
+    @property
+    def known(self) -> bool:
+        """False when check_bundle_launch cannot tell the value: it depends on what only the
+        computer that runs the file can tell (`$(env ...)`, `$(find-pkg-share ...)`)."""
+        items = self.value if isinstance(self.value, list) else [self.value]
+        return not any(isinstance(item, str) and _UNKNOWN in item for item in items)
+
 
 def check_bundle_launch(
     description: d.LaunchDescription, files: frozenset[str], params_files: frozenset[str] = frozenset()

@@ -136,6 +136,32 @@ class Cluster(ControlPlane):
         )
 
 
+# The controller's own words for such a route (its rules, fleet/nodes/parameters.py).
+ROUTE_REFUSAL = "waypoints must be x,y pairs (even length >= 2), got 3 values"
+
+
+def with_refused_route(template: Path, directory: Path, robot: str) -> str:
+    """Template `template` (with its parameter defaults) copied into `directory` as site_NAME,
+    whose controller reads a route file of the agent's computer after the robot's parameter file
+    (a route surveyed on site, say), which holds a route of 3 values for `robot`: the controller
+    refuses it at every start (ROUTE_REFUSAL).  In the spec or with --set, `fleet render` would
+    refuse such a route (the controller's rules); a file it cannot see reaches the controller.
+    Returns the copy's name."""
+    directory.mkdir(parents=True, exist_ok=True)
+    route = directory / "routes.yaml"
+    route.write_text(f"/{robot}/controller:\n  ros__parameters:\n    waypoints: [1.0, 2.0, 3.0]\n")
+    name = "site_" + template.name.removesuffix(".launch.yaml.j2")
+    text = template.read_text()
+    robot_file = "      - from: {{ params_file }}\n"
+    assert text.index("exec: controller") < text.index(robot_file), "the controller is the template's first node"
+    (directory / f"{name}.launch.yaml.j2").write_text(
+        text.replace(robot_file, f"{robot_file}      - from: {route}\n", 1)
+    )
+    defaults = template.with_name(template.name.replace(".launch.yaml.j2", ".params.yaml"))
+    (directory / f"{name}.params.yaml").write_text(defaults.read_text())
+    return name
+
+
 def robot(view, name: str):
     return next(row for row in view.robots if row.name == name)
 

@@ -1,23 +1,37 @@
-"""fleets/two_robots.yaml with robot2's controller refusing its waypoints at every start, over the
-control plane with real nodes and the world: the deploy stops waiting for robot2 and fails, and
-status says it is `degraded` and why (the node, its exit, its restarts, its own words), whichever
-isolation runs it.  A deploy that does not wait is ok once taken, and exits 0."""
+"""fleets/two_robots.yaml with robot2's controller refusing its waypoints at every start (a route
+file on its agent's computer holds 3 values), over the control plane with real nodes and the
+world: the deploy stops waiting for robot2 and fails, and status says it is `degraded` and why
+(the node, its exit, its restarts, its own words), whichever isolation runs it.  A deploy that
+does not wait is ok once taken, and exits 0."""
 
 from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 
 import pytest
+import yaml
 
+from fleet.expand.templating import builtin_template_dirs
 from fleet.testing.poll import poll
+from tests.control.control_helpers import ROUTE_REFUSAL as REFUSAL
+from tests.control.control_helpers import Cluster, with_refused_route
 
 pytestmark = pytest.mark.integration
 
-# fleet/nodes/models.py's words.  A value out of a declared range would not do: render refuses it
-# (the controller's own declarations, fleet/nodes/parameters.py); one that only the node's check
-# of its parameters together refuses reaches the node.
-REFUSAL = "waypoints must be x,y pairs (even length >= 2), got 3 values"
+
+def with_refused_route_of_robot2(cluster: Cluster, isolation: str) -> Path:
+    """cluster.two_robots_on_host_a(isolation), whose robots' controllers also read a route file
+    of hostA's computer, with a route of 3 values for robot2 (control_helpers.with_refused_route)."""
+    site = cluster.root / f"site-{isolation}"
+    diff_drive = builtin_template_dirs()[0] / "diff_drive.launch.yaml.j2"
+    data = yaml.safe_load(cluster.two_robots_on_host_a(isolation).read_text())
+    data["templates"] = str(site)
+    data["defaults"]["template"] = with_refused_route(diff_drive, site, "robot2")
+    path = cluster.root / f"two_robots-refused-route-{isolation}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
 
 
 def rows(document: dict) -> dict[str, dict]:
@@ -27,13 +41,7 @@ def rows(document: dict) -> dict[str, dict]:
 @pytest.mark.parametrize("isolation", ["process", "agent"])
 def test_a_robot_whose_node_keeps_exiting_is_degraded_with_why_and_fails_the_deploy_early(host_a, isolation):
     cluster = host_a
-    refused = [
-        str(cluster.two_robots_on_host_a(isolation)),
-        "--set",
-        "robot2.controller.waypoints=[1.0, 2.0, 3.0]",
-        "--connect",
-        cluster.endpoint,
-    ]
+    refused = [str(with_refused_route_of_robot2(cluster, isolation)), "--connect", cluster.endpoint]
     began = time.monotonic()
     done = cluster.cli("deploy", *refused, "--json", "--timeout", "150", timeout=200)
     took = time.monotonic() - began

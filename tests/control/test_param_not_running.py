@@ -1,8 +1,9 @@
-"""`fleet param` on a robot whose controller keeps refusing its waypoints, so that its agent holds
-it in backoff: whichever isolation runs it, get and set fail at once, saying the node is not
-running and why, and list says it in one line for the nodes that share the reason, beside the
-parameters of those that run.  They used to wait for parameter services nobody served: 22 s for
-a get, 32 s for a set (which then said the node `refused` the value), three lines for a list."""
+"""`fleet param` on a robot whose controller keeps refusing its waypoints (a route file on its
+agent's computer holds 3 values), so that its agent holds it in backoff: whichever isolation runs
+it, get and set fail at once, saying the node is not running and why, and list says it in one
+line for the nodes that share the reason, beside the parameters of those that run.  They used to
+wait for parameter services nobody served: 22 s for a get, 32 s for a set (which then said the
+node `refused` the value), three lines for a list."""
 
 from __future__ import annotations
 
@@ -11,11 +12,11 @@ import time
 import pytest
 
 from fleet.testing.poll import poll
-from tests.control.control_helpers import robot
+from tests.control.control_helpers import DATA, robot, with_refused_route
+from tests.control.control_helpers import ROUTE_REFUSAL as REFUSAL
 
 pytestmark = pytest.mark.integration
 
-REFUSAL = "waypoints must be x,y pairs (even length >= 2), got 3 values"  # fleet/nodes/models.py's words
 AT_ONCE = 15.0  # s: a CLI call on a loaded machine, well short of the 20 to 30 s it waited for services
 # The nodes whose process stops with the controller's: the host's robot, the composite process.
 DOWN_TOGETHER = {"agent": "controller+battery", "robot": "controller+battery", "process": "controller"}
@@ -33,11 +34,14 @@ def param(cluster, *args):
 @pytest.mark.parametrize("isolation", ["agent", "robot", "process"])
 def test_param_on_a_node_in_backoff_fails_at_once_saying_so(host_a, isolation):
     cluster = host_a
+    site = cluster.root / f"site-{isolation}"
+    template = with_refused_route(DATA / "templates" / "hosted.launch.yaml.j2", site, "robot2")
     spec = cluster.spec(
         name="stuck",
         fleet="stuck",
-        defaults={"template": "hosted", "agent": "hostA", "isolation": isolation},
-        robots=[{"name": "robot2", "parameters": {"controller": {"waypoints": [1.0, 2.0, 3.0]}}}],
+        templates=str(site),
+        defaults={"template": template, "agent": "hostA", "isolation": isolation},
+        robots=[{"name": "robot2"}],
     )
     outcome = cluster.deploy(spec, wait=False)
     assert outcome.ok, outcome

@@ -1,8 +1,10 @@
 """`fleet render` refuses a parameter value fleet's own nodes (package fleet_nodes) would refuse
-at start, of the wrong type or out of the range they declare, by their own declarations
-(fleet.nodes.parameters): at the place the value is given, before anything is deployed.  A
-deploy with `--set robot1.controller.max_speed=9.0` used to pass every check and stop a working
-robot1 for a controller that then crash-looped."""
+at start, of the wrong type or out of the range they declare, and values they refuse together
+(waypoints not in x,y pairs, a critical battery threshold above the low one), by their own
+declarations and rules (fleet.nodes.parameters): at the place the value is given, before
+anything is deployed.  A deploy with `--set robot1.controller.max_speed=9.0` used to pass every
+check and stop a working robot1 for a controller that then crash-looped; so did one with
+`--set robot2.controller.waypoints=[1.0,2.0,3.0]` until the rules were checked too."""
 
 from __future__ import annotations
 
@@ -169,17 +171,171 @@ def test_a_value_the_launch_file_gives_inline_is_checked_there(tmp_path):
 
 
 def test_robots_that_share_their_nodes_parameters_are_checked_once(monkeypatch):
-    """Cheap for 10,000 robots: a node's values no robot changed are checked once, not per robot."""
-    from fleet.nodes.parameters import ParamSpec
+    """Cheap for 10,000 robots: a node's values no robot changed are checked once, not per robot,
+    and so are its rules."""
+    from fleet.nodes.parameters import ParamSpec, Rule
 
     calls = []
-    real = ParamSpec.problem
+    rules = []
+    real, real_rule = ParamSpec.problem, Rule.problem
 
     def counted(self, value):
         calls.append(self.name)
         return real(self, value)
 
+    def counted_rule(self, values):
+        rules.append(self.names)
+        return real_rule(self, values)
+
     monkeypatch.setattr(ParamSpec, "problem", counted)
+    monkeypatch.setattr(Rule, "problem", counted_rule)
     robots = "".join(f"  - {{name: r{i}}}\n" for i in range(200))
     expand_fleet(parse_spec("fleet: demo\nros: {use_sim_time: false}\nrobots:\n" + robots, "f.yaml"))
     assert 0 < len(calls) <= 16  # the 16 parameters of controller, battery and safety, once
+    assert 0 < len(rules) <= 3  # the controller's rule and the battery's two, once
+
+
+# -- the nodes' checks of their values together (fleet.nodes.parameters' rules) ---------------
+
+ODD = "waypoints must be x,y pairs (even length >= 2), got 3 values"
+
+
+def test_waypoints_set_in_odd_number_are_refused_at_the_set(capsys):
+    assert refusal(capsys, TWO_ROBOTS, "--set", "robot2.controller.waypoints=[1.0,2.0,3.0]") == (
+        f"fleet: error: --set robot2.controller.waypoints=[1.0,2.0,3.0]: robot robot2: controller.{ODD} "
+        "(fleet_nodes controller refuses it at start)"
+    )
+    capsys.readouterr()
+    assert run_fleet(["deploy", str(TWO_ROBOTS), "--dry-run", "--set", "robot1.controller.waypoints=[1.0]"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "controller.waypoints must be x,y pairs (even length >= 2), got 1 values" in err
+
+
+def test_waypoints_in_odd_number_in_the_spec_are_refused_where_they_are_written(tmp_path, capsys):
+    spec = scout(tmp_path, "{name: a, parameters: {controller: {waypoints: [1.0, 2.0, 3.0]}}}")
+    assert refusal(capsys, spec) == (
+        f"fleet: error: {spec}:6:50: robot a: controller.{ODD} (fleet_nodes controller refuses it at start)"
+    )
+
+
+BATTERY = """\
+launch:
+- group:
+  - push_ros_namespace: {namespace: {{ robot.namespace }}}
+  - node: {pkg: fleet_nodes, exec: battery, name: battery, param: [{from: {{ params_file }}}]}
+"""
+
+
+def battery(tmp_path: Path, robot: str, defaults: str = "") -> Path:
+    """A template starting fleet_nodes' battery, with `defaults` as its parameter defaults (none:
+    the node's own defaults, low_threshold 0.2 and critical_threshold 0.05)."""
+    templates = tmp_path / "templates"
+    templates.mkdir(parents=True, exist_ok=True)
+    (templates / "cell.launch.yaml.j2").write_text(BATTERY)
+    if defaults:
+        (templates / "cell.params.yaml").write_text(defaults)
+    return spec_file(
+        tmp_path,
+        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: cell}\n"
+        f"robots:\n- {robot}\n",
+    )
+
+
+def test_values_fine_alone_but_refused_together_are_refused(tmp_path, capsys):
+    """critical_threshold 0.5 is in its range 0.0 .. 1.0, but above the node's low_threshold (its
+    own default, 0.2, as the node has it: no layer gives one)."""
+    spec = battery(tmp_path, "{name: a, parameters: {battery: {critical_threshold: 0.5}}}")
+    assert refusal(capsys, spec) == (
+        f"fleet: error: {spec}:6:56: robot a: battery.critical_threshold (0.5) must be <= low_threshold (0.2) "
+        "(fleet_nodes battery refuses it at start)"
+    )
+    # With a low threshold above it, the node takes it.
+    assert run_fleet(["render", str(spec), "-o", str(tmp_path / "ok"), "--set", "a.battery.low_threshold=0.6"]) == 0
+
+
+def test_a_refusal_together_is_placed_at_the_value_given_last(tmp_path, capsys):
+    """The refusal is placed at the value of those the rule reads in the highest layer: here the
+    --set that lowered low_threshold under the template's critical_threshold."""
+    spec = battery(tmp_path, "{name: a}", "battery: {critical_threshold: 0.1}\n")
+    assert run_fleet(["render", str(spec), "-o", str(tmp_path / "ok")]) == 0
+    assert refusal(capsys, spec, "--set", "a.battery.low_threshold=0.05") == (
+        "fleet: error: --set a.battery.low_threshold=0.05: robot a: battery.critical_threshold (0.1) must be <= "
+        "low_threshold (0.05) (fleet_nodes battery refuses it at start)"
+    )
+
+
+def test_the_templates_defaults_are_the_values_the_node_has(tmp_path, capsys):
+    """critical_threshold 0.15 is below the node's own low_threshold (0.2), but the template's
+    defaults give it 0.1: the node would refuse it."""
+    spec = battery(tmp_path, "{name: a, parameters: {battery: {critical_threshold: 0.15}}}")
+    assert run_fleet(["render", str(spec), "-o", str(tmp_path / "ok")]) == 0
+    spec = battery(
+        tmp_path / "low",
+        "{name: a, parameters: {battery: {critical_threshold: 0.15}}}",
+        "battery: {low_threshold: 0.1}\n",
+    )
+    assert refusal(capsys, spec) == (
+        f"fleet: error: {spec}:6:56: robot a: battery.critical_threshold (0.15) must be <= low_threshold (0.1) "
+        "(fleet_nodes battery refuses it at start)"
+    )
+
+
+def test_a_capacity_of_zero_is_refused(tmp_path, capsys):
+    """0.0 is the bottom of capacity's declared range, whose bounds are in; the node wants more."""
+    spec = battery(tmp_path, "{name: a, parameters: {battery: {capacity: 0}}}")
+    assert refusal(capsys, spec) == (
+        f"fleet: error: {spec}:6:46: robot a: battery.capacity must be > 0, got 0.0 "
+        "(fleet_nodes battery refuses it at start)"
+    )
+
+
+def controller_given(tmp_path: Path, inline: str, parameters: str = "") -> Path:
+    """The scout template, its controller given `inline` after the robot's parameter file."""
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    (templates / "scout.launch.yaml.j2").write_text(
+        SCOUT.replace("{from: {{ params_file }}}]", "{from: {{ params_file }}}, " + inline + "]", 1)
+    )
+    return spec_file(
+        tmp_path,
+        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
+        f"robots:\n- {{name: a{parameters}}}\n",
+    )
+
+
+def test_waypoints_the_launch_file_gives_inline_are_checked_there(tmp_path):
+    spec = controller_given(tmp_path, "{name: waypoints, value: [1.0, 2.0, 3.0]}")
+    with pytest.raises(SpecError) as refused:
+        expand_fleet(parse_spec(spec.read_text(), str(spec)))
+    assert str(refused.value).startswith("a/a.launch.yaml:4:")
+    assert f"robot a: controller.{ODD}" in str(refused.value)
+
+
+@pytest.mark.parametrize("inline", ["{name: waypoints, value: $(env ROUTE)}", "{name: max_speed, value: $(env SPEED)}"])
+def test_values_only_the_agents_computer_can_tell_are_left_to_the_node(tmp_path, inline):
+    """A value of the agent's environment wins over the parameter file's: render cannot tell it,
+    so it checks neither it alone (it used to refuse `$(env SPEED)` as a string) nor the rule that
+    reads it, even over the spec's waypoints, which the node never gets."""
+    spec = controller_given(tmp_path, inline, ", parameters: {controller: {waypoints: [1.0, 2.0, 3.0]}}")
+    if "max_speed" in inline:  # the spec's waypoints reach the node: refused
+        with pytest.raises(SpecError, match="got 3 values"):
+            expand_fleet(parse_spec(spec.read_text(), str(spec)))
+        spec.write_text(spec.read_text().replace(", parameters: {controller: {waypoints: [1.0, 2.0, 3.0]}}", ""))
+    assert run_fleet(["render", str(spec), "-o", str(tmp_path / "out")]) == 0
+
+
+def test_a_node_started_without_the_parameter_file_is_checked_by_what_it_is_given_inline(tmp_path, capsys):
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    (templates / "scout.launch.yaml.j2").write_text(
+        SCOUT.replace("{from: {{ params_file }}}]", "{name: waypoints, value: [1.0]}]", 1)
+    )
+    spec = spec_file(
+        tmp_path,
+        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
+        "robots:\n- {name: a}\n",
+    )
+    with pytest.raises(SpecError) as refused:
+        expand_fleet(parse_spec(spec.read_text(), str(spec)))
+    assert str(refused.value).startswith("a/a.launch.yaml:4:")
+    assert "controller.waypoints must be x,y pairs (even length >= 2), got 1 values" in str(refused.value)

@@ -83,20 +83,6 @@ def test_follower_with_all_waypoints_reached_does_not_spin():
     follower.update(0, 0, 0.1)  # returns although every waypoint is always within tolerance
 
 
-@pytest.mark.parametrize(
-    "flat, ok",
-    [
-        ([1.0, 2.0], True),
-        ([], False),
-        ([1.0], False),
-        ([1.0, 2.0, 3.0], False),
-        ([1.0, math.nan], False),
-    ],
-)
-def test_check_waypoints(flat, ok):
-    assert (models.check_waypoints(flat) is None) is ok
-
-
 def test_battery_drains_with_time_and_faster_with_motion():
     battery = models.BatteryModel(capacity_wh=1.0, energy_wh=1.0, idle_draw_w=3.6, motion_draw_w_per_mps=7.2)
     battery.advance(100.0)  # 3.6 W * 100 s = 0.1 Wh

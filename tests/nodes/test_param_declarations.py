@@ -1,5 +1,6 @@
 """fleet.nodes.parameters says, without rclpy, which values the nodes refuse at start (`fleet
-render` refuses by it): here each node's real declaration, in rclpy, is asked the same."""
+render` refuses by it): here each node's real declaration, in rclpy, is asked the same, and each
+node is given values its rules (of its parameters together) refuse and take."""
 
 from __future__ import annotations
 
@@ -33,10 +34,11 @@ def candidates(spec: parameters.ParamSpec) -> list:
     return values
 
 
-def refusal(ros, node_class: type, name: str, value) -> str | None:
-    """What the node says when it refuses to start with `value` for `name`, or None."""
+def refusal(ros, node_class: type, given: dict) -> str | None:
+    """What the node says when it refuses to start with the `given` values (by name), or None."""
+    overrides = [Parameter(name, value=value) for name, value in given.items()]
     try:
-        node = node_class(context=ros.context, parameter_overrides=[Parameter(name, value=value)])
+        node = node_class(context=ros.context, parameter_overrides=overrides)
     except ParameterError as refused:
         return str(refused)
     node.destroy_node()
@@ -48,7 +50,7 @@ def test_the_pure_declarations_refuse_what_the_nodes_refuse(ros, node_class, spe
     assert tuple(node_class.PARAMETERS) == specs
     for spec in specs:
         for value in candidates(spec):
-            refused = refusal(ros, node_class, spec.name, value)
+            refused = refusal(ros, node_class, {spec.name: value})
             problem = spec.problem(value)
             if problem is not None:
                 assert refused is not None and refused.endswith(spec.explain(value)), (spec.name, value, refused)
@@ -72,3 +74,36 @@ def test_types_are_named_as_rclpy_names_them(value):
         assert ros_type(value) == expected
     else:
         assert ros_type(value) == type(value).__name__
+
+
+RULES = [
+    (ControllerNode, parameters.CONTROLLER_RULES),
+    (BatteryNode, parameters.BATTERY_RULES),
+    (SafetyNode, parameters.SAFETY_RULES),
+]
+TOGETHER = [
+    (ControllerNode, {"waypoints": [1.0, 2.0, 3.0]}),
+    (ControllerNode, {"waypoints": [1.0]}),
+    (ControllerNode, {"waypoints": [1.0, math.nan]}),
+    (ControllerNode, {"waypoints": [1.0, 2.0]}),
+    (BatteryNode, {"capacity": 0.0}),
+    (BatteryNode, {"capacity": 1e-9}),
+    (BatteryNode, {"critical_threshold": 0.5}),
+    (BatteryNode, {"low_threshold": 0.01}),
+    (BatteryNode, {"critical_threshold": 0.3, "low_threshold": 0.3}),
+    (BatteryNode, {"critical_threshold": 0.9, "low_threshold": 0.95}),
+]
+
+
+@pytest.mark.parametrize("node_class, rules", RULES, ids=lambda item: getattr(item, "__name__", ""))
+def test_the_nodes_check_by_the_pure_rules(node_class, rules):
+    assert tuple(node_class.RULES) == rules
+
+
+@pytest.mark.parametrize("node_class, given", TOGETHER, ids=lambda item: getattr(item, "__name__", str(item)))
+def test_the_nodes_refuse_together_what_the_pure_rules_refuse(ros, node_class, given):
+    values = {spec.name: spec.coerce(given.get(spec.name, spec.default)) for spec in node_class.PARAMETERS}
+    expected = parameters.refusal(node_class.RULES, values)
+    refused = refusal(ros, node_class, given)
+    assert (refused is None) == (expected is None), (given, refused, expected)
+    assert expected is None or (refused is not None and refused.endswith(expected)), (refused, expected)
