@@ -863,8 +863,8 @@ class Agent:
         unit = self._unit(request.fleet, request.robot)
         states = unit.node_states()
         names = [state.name for state in states]
-        if request.node and request.node not in names:
-            raise _no_such_node(request.robot, request.node, unit)
+        if request.node and request.node not in names and request.node not in (request.cursor or {}):
+            raise _no_such_node(request.robot, request.node, unit)  # (one followed may be restarting)
         loggers = {state.name: logger_name(state.fqn) for state in states if state.fqn}
         reply = robot_logs(names, unit.log_file, request, loggers)
         yield p.logs_key(request.fleet, self.name), p.encode(reply)
