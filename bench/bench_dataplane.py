@@ -75,12 +75,11 @@ class Setup:
             self.env_b["ROS_STATIC_PEERS"] = lan.hosts["sim"].address
         self.ds = None
         if self.server:
-            command = server_command(self.server)
+            log_file = Path(tempfile.mkdtemp()) / "ds.log"
+            command = server_command(self.server, log_file.with_suffix(".xml"))
             if lan:  # the server runs on "sim"
                 command = lan.hosts["sim"].command(*command)
-            self.ds = ServiceProcess(
-                command, server_environment(ros_environment(domain)), Path(tempfile.mkdtemp()) / "ds.log"
-            )
+            self.ds = ServiceProcess(command, server_environment(ros_environment(domain)), log_file)
             self.ds.keep_running()
             time.sleep(0.5)
 
@@ -125,7 +124,7 @@ class ZenohSetup(Setup):
         self.tmp = Path(tempfile.mkdtemp())
         self.servers = [
             ServiceProcess(
-                lan.hosts[host].command(*server_command(self.server)),
+                lan.hosts[host].command(*server_command(self.server, self.tmp / f"ds-{host}.xml")),
                 server_environment(ros_environment(domain)),
                 self.tmp / f"ds-{host}.log",
             )

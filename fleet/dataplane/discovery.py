@@ -9,9 +9,40 @@ import shutil
 import sys
 from pathlib import Path
 
+from fleet.files import write_atomic
 from fleet.runtime.processes import ServiceProcess
 
 SERVER_PROGRAM = "fast-discovery-server"  # ships in the ROS wheels (package ros-fastrtps)
+
+# A Fast DDS client keeps a server that went silent until the server's lease runs out.  A server
+# killed without a word (SIGKILL, a crash: no "unregister" message) and started again within
+# that lease is taken by the clients for the old one, which knew them: they never announce
+# themselves to it again, so no participant started since ever finds them.  Robots on another
+# computer were cut off for good from a world whose agent was killed and started again.  So the
+# server announces a lease of its own, and one that died is started again only after it has run
+# out at every client (they then look for a server again, and find the new one).
+SERVER_LEASE = 10.0  # seconds (Fast DDS's default is 20)
+SERVER_ANNOUNCEMENT = 2.0  # how often it asserts that lease: 5 times per lease, as lost packets go
+RESTART_AFTER = SERVER_LEASE + 1.0
+
+_PROFILE = f"""<?xml version="1.0" encoding="UTF-8" ?>
+<!-- Written by fleet: the lease of the fleet's DDS discovery server (fleet.dataplane.discovery). -->
+<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <profiles>
+    <participant profile_name="fleet_discovery_server" is_default_profile="true">
+      <rtps>
+        <builtin>
+          <discovery_config>
+            <discoveryProtocol>SERVER</discoveryProtocol>
+            <leaseDuration><sec>{SERVER_LEASE:.0f}</sec><nanosec>0</nanosec></leaseDuration>
+            <leaseAnnouncement><sec>{SERVER_ANNOUNCEMENT:.0f}</sec><nanosec>0</nanosec></leaseAnnouncement>
+          </discovery_config>
+        </builtin>
+      </rtps>
+    </participant>
+  </profiles>
+</dds>
+"""
 
 
 def server_program() -> Path | None:
@@ -29,13 +60,16 @@ def _library_path(env: dict[str, str]) -> str:
     return os.pathsep.join([*parts, str(Path(sys.prefix) / "lib")])
 
 
-def server_command(server: str) -> list[str]:
-    """The command line of a discovery server listening on `server` ("address:port")."""
+def server_command(server: str, profile: Path) -> list[str]:
+    """The command line of a discovery server listening on `server` ("address:port"), with its
+    settings in `profile` (written here)."""
     program = server_program()
     if program is None:
         raise FileNotFoundError(f"{SERVER_PROGRAM} not found (it comes with the ros-jazzy wheels)")
+    profile.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(profile, _PROFILE)
     address, _, port = server.rpartition(":")
-    return [str(program), "--server-id", "0", "--udp-address", address, "--udp-port", port]
+    return [str(program), "--server-id", "0", "--udp-address", address, "--udp-port", port, "--xml-file", str(profile)]
 
 
 def server_environment(env: dict[str, str]) -> dict[str, str]:
@@ -43,8 +77,16 @@ def server_environment(env: dict[str, str]) -> dict[str, str]:
     return {**env, "LD_LIBRARY_PATH": _library_path(env)}
 
 
-def discovery_server(server: str, env: dict[str, str], log_file: Path) -> ServiceProcess:
-    return ServiceProcess(server_command(server), server_environment(env), log_file)
+def discovery_server(
+    server: str, env: dict[str, str], log_file: Path, down_since: float | None = None
+) -> ServiceProcess:
+    """The discovery server as a service (its profile beside `log_file`), started again
+    RESTART_AFTER seconds after it died.  down_since: the monotonic time from which a server of
+    an earlier run of the caller may have died without a word (started no sooner than
+    RESTART_AFTER after it)."""
+    profile = log_file.with_suffix(".xml")
+    command = server_command(server, profile)
+    return ServiceProcess(command, server_environment(env), log_file, RESTART_AFTER, down_since)
 
 
 WILDCARDS = {"0.0.0.0", "::"}  # a listen endpoint on every interface of this computer

@@ -15,6 +15,7 @@ import os
 import signal
 import subprocess
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import IO
@@ -83,10 +84,22 @@ class ServiceProcess:
 
     Call keep_running() from a thread that lives as long as the process should (see spawn)."""
 
-    def __init__(self, command: list[str], env: Mapping[str, str], log_file: Path):
+    def __init__(
+        self,
+        command: list[str],
+        env: Mapping[str, str],
+        log_file: Path,
+        restart_after: float = 0.0,
+        down_since: float | None = None,
+    ):
+        """restart_after: seconds the service stays down after a process of it died before
+        another is started; down_since: the monotonic time from which a predecessor (of an
+        earlier run of the caller) may have been down, to count from before the first start."""
         self.command = command
         self.env = dict(env)
         self.log_file = log_file
+        self.restart_after = restart_after
+        self.down_since = down_since
         self.process: subprocess.Popen | None = None
 
     @property
@@ -98,8 +111,18 @@ class ServiceProcess:
         """Start the process if it is not running (first call, or it exited)."""
         if self.process is not None and self.process.poll() is None:
             return
+        now = time.monotonic()
         if self.process is not None:
-            _log.warning("%s exited with %s: starting it again", self.command[0], self.process.returncode)
+            _log.warning(
+                "%s exited with %s: starting it again%s",
+                self.command[0],
+                self.process.returncode,
+                f" in {self.restart_after:g} s" if self.restart_after else "",
+            )
+            self.process, self.down_since = None, now
+        if self.down_since is not None and now - self.down_since < self.restart_after:
+            return
+        self.down_since = None
         self.log_file.parent.mkdir(parents=True, exist_ok=True)
         with open(self.log_file, "ab") as output:
             self.process = spawn(self.command, self.env, output=output)

@@ -112,6 +112,8 @@ class Agent:
             started_at=time.time(),
             address=address or address_towards(connect),
         )
+        self._started = time.monotonic()
+        self._restored: set[str] = set()  # fleets restored from the state directory whose server has not run yet
         self._lock = threading.Lock()  # guards _fleets, _units, _reconciled, _tokens, _restarts_*
         self._fleets: dict[str, FleetState] = {}
         self._units: dict[tuple[str, str], Unit] = {}
@@ -201,6 +203,7 @@ class Agent:
             log.error("cannot restore desired state: %s", problem)
         with self._lock:
             self._fleets = fleets
+        self._restored = set(fleets)
         for fleet in fleets:
             self._work.put(fleet)
 
@@ -660,7 +663,11 @@ class Agent:
         if kind == "discovery":
             assert service.server is not None  # wanted only where the fleet has a server
             log_file = directory / f"{fleet}.discovery.log"
-            return discovery_server(service.server, self._unit_env(request.domain_id, None), log_file)
+            # A fleet restored from the state directory had its server run by this agent's
+            # predecessor, which may have died (and its server with it) just before we started.
+            down_since = self._started if fleet in self._restored else None
+            self._restored.discard(fleet)
+            return discovery_server(service.server, self._unit_env(request.domain_id, None), log_file, down_since)
         if kind == "watch":
             return self._shared_watch(fleet, service, state)
         config = directory / f"{fleet}.bridge.json"
@@ -856,8 +863,8 @@ class Agent:
         unit = self._unit(request.fleet, request.robot)
         states = unit.node_states()
         names = [state.name for state in states]
-        if request.node and request.node not in names:
-            raise _no_such_node(request.robot, request.node, unit)
+        if request.node and request.node not in names and request.node not in (request.cursor or {}):
+            raise _no_such_node(request.robot, request.node, unit)  # (one followed may be restarting)
         loggers = {state.name: logger_name(state.fqn) for state in states if state.fqn}
         reply = robot_logs(names, unit.log_file, request, loggers)
         yield p.logs_key(request.fleet, self.name), p.encode(reply)

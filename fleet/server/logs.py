@@ -23,7 +23,15 @@ def robot_logs(
     (fleet.runtime.node_log.lines_of), as `ros2 launch` users read a node's output by its
     logger.  The cursor keeps an offset per node, so a client following the log sends back what
     it got, whatever the grouping.
+
+    A follower's place is kept in the nodes its cursor names that the robot does not run now
+    (`fleet restart` stops them all for a moment): they get no lines and their offsets back, and
+    the lines written meanwhile (how each process ended, the new one's start) come once they run
+    again, rather than the follower losing them or being told the node does not exist.
     """
+    kept = {node: offset for node, offset in (request.cursor or {}).items() if node not in nodes}
+    if request.node in kept:
+        return p.LogsReply(lines=[], cursor=kept)
     groups: dict[Path | None, list[str]] = {}
     for node in nodes:
         groups.setdefault(log_file(node), []).append(node)
@@ -49,7 +57,7 @@ def robot_logs(
         cursor.update(dict.fromkeys(members, offset))
         label = "+".join(members)
         lines.extend(p.LogLine(node=label, text=text) for text in text_lines)
-    return p.LogsReply(lines=lines, cursor=cursor)
+    return p.LogsReply(lines=lines, cursor={**kept, **cursor})
 
 
 def read_log(path: Path | None, tail: int, start: int | None) -> tuple[list[str], int]:

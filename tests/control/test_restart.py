@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import json
 import signal
+import subprocess
+import sys
+import time
 
 import pytest
 
@@ -74,6 +77,39 @@ def test_a_restarted_robot_runs_again_with_new_processes_and_its_live_parameters
     assert unknown.returncode == 2 and unknown.stderr.count("\n") == 1, unknown.stdout + unknown.stderr
     assert "no robot named 'robot9' is deployed" in unknown.stderr
     assert rows(status(cluster))["robot1"]["restarted"] == 1
+
+
+def test_logs_followed_across_a_restart_go_on_with_how_the_old_processes_ended(host_a):
+    """`fleet logs ROBOT NODE -f` and `fleet logs ROBOT -f` while the robot is restarted: its
+    nodes are down for a moment, and the followers neither end (the node is not unknown) nor
+    lose their place (the old processes' last lines and the new ones' first come once)."""
+    cluster = host_a
+    deploy(cluster, "process")
+    followers = {
+        which: subprocess.Popen(
+            [sys.executable, "-m", "fleet", "logs", "robot1", *node, "-f", "-n", "1", "--connect", cluster.endpoint],
+            env=cluster.env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for which, node in (("controller", ["controller"]), ("robot", []))
+    }
+    try:
+        time.sleep(3)  # each has read its tail and follows
+        restart(cluster, "robot1")
+        time.sleep(3)  # the new processes' first lines
+        exited = {which: process.poll() for which, process in followers.items()}
+    finally:
+        for process in followers.values():
+            process.terminate()
+    output = {which: process.communicate(timeout=10) for which, process in followers.items()}
+    assert exited == {"controller": None, "robot": None}, (exited, output)
+    for which, (out, _) in output.items():
+        ended = [line for line in out.splitlines() if "controller-1]: process has finished cleanly" in line]
+        started = [line for line in out.splitlines() if "controller-1]: process started with pid" in line]
+        assert len(ended) == 1 and len(started) == 1, (which, out)
+        assert out.index(ended[0]) < out.index(started[0]), (which, out)
 
 
 def test_a_restart_ends_when_its_agent_was_started_again_meanwhile(host_a):

@@ -4,6 +4,7 @@ robot2), so an agent's fault hits part of the fleet while the rest keeps running
 
 from __future__ import annotations
 
+import os
 import signal
 import time
 
@@ -146,6 +147,38 @@ def test_a_deploy_restarting_a_robot_is_up_only_once_its_new_nodes_reach_the_wor
     assert cmd_age is not None, "the world has no command from robot1"
     heard = world["wall_time"] - cmd_age
     assert heard > started, f"the world last heard robot1 {started - heard:.2f} s before its new nodes started"
+
+
+def test_killed_world_agent_comes_back_and_the_robots_of_the_other_agent_drive_on(fleet):
+    """hostA runs the world and the fleet's DDS discovery server; robot2's nodes on hostB outlive
+    its SIGKILL.  The restarted agent's new world must find them: its new server must be one
+    robot2's nodes announce themselves to (they had taken one started at once for the old one,
+    and were cut off from the world for good)."""
+    robot2 = fleet.pids("robot2")
+    fleet.restart_agent("hostA", signal.SIGKILL)
+    fleet.wait_desired_state(timeout=60)
+    assert fleet.pids("robot2") == robot2  # the same nodes, not restarted
+    for robot in ROBOTS:
+        drives_on(fleet, robot)
+    fleet.assert_no_leaks()
+
+
+def test_a_participant_started_after_the_discovery_server_was_killed_finds_the_others(fleet):
+    """The discovery server alone is SIGKILLed; its agent starts it again.  A world started after
+    that (a new participant) must still find every robot's nodes, which knew the old server."""
+    (server,) = fleet.status().discovery[fleet.name]
+    os.kill(server["pid"], signal.SIGKILL)
+
+    def restarted():
+        (now,) = fleet.status().discovery[fleet.name]
+        return now["pid"] not in (None, server["pid"])
+
+    fleet.wait_for(restarted, timeout=30, what="the discovery server to run again")
+    fleet.restart("world")
+    fleet.wait_desired_state(timeout=30)
+    for robot in ROBOTS:
+        drives_on(fleet, robot)
+    fleet.assert_no_leaks()
 
 
 def test_router_restart_agents_reconnect(fleet):
