@@ -55,10 +55,12 @@ def logs(
             while True:
                 request = p.LogsRequest(fleet=fleet_name, robot=robot, node=node, tail=tail, cursor=cursor)
                 reply = control.logs(agent_name, request)
-                nodes = {line.node for line in reply.lines}
+                # Every line of a robot of several nodes says whose it is, as `ros2 launch` prints
+                # them; not only those of a reply that happens to hold lines of several (a follower
+                # gets one node's new lines at a time).  The cursor names each of its nodes.
+                labelled = node is None and len(reply.cursor) > 1
                 for line in reply.lines:
-                    prefix = f"[{line.node}] " if node is None and len(nodes) > 1 else ""
-                    sys.stdout.write(f"{prefix}{line.text}\n")
+                    sys.stdout.write(f"[{line.node}] {line.text}\n" if labelled else f"{line.text}\n")
                 sys.stdout.flush()
                 if not follow:
                     break
