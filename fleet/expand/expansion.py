@@ -84,7 +84,7 @@ class RobotPlan:
         as the value of a node started without the parameter file that the launch file does not
         give it either: it keeps its own default."""
         if found := self.inline.get(node, {}).get(name):
-            return Setting(found.value, INLINE_LAYER, str(self.launch_place(found.where)))
+            return Setting(found.shown, INLINE_LAYER, str(self.launch_place(found.where)))
         if node in self.without_file and (node, name) in self.parameters.history:
             return Setting(None, INLINE_LAYER, str(self.launch_place(self.without_file[node])))
         return None
@@ -329,7 +329,7 @@ def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:
                 place = plan.launch_place(inline.where)
                 warnings[(node, name)] = (
                     f"{history[-1].source}: {node}.{name} is not used: the launch file gives it inline after the "
-                    f"parameter file ({place}: {value_text(inline.value)}), and that value wins; "
+                    f"parameter file ({place}: {value_text(inline.shown)}), and that value wins; "
                     "set it through the template's launch arguments, if it has one"
                 )
     return warnings
