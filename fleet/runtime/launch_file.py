@@ -13,6 +13,7 @@ files (launch_ros does the same) and the command lines assembled.
 
 from __future__ import annotations
 
+import difflib
 import os
 import re
 import tempfile
@@ -241,7 +242,10 @@ class _Interpreter:
             if args[0] not in scope.configurations or not isinstance(scope.configurations[args[0]], str):
                 if self.unknown_configurations:
                     return _UNKNOWN
-                raise LaunchFileError(f"launch configuration '{args[0]}' is not defined", where)
+                defined = sorted(name for name, value in scope.configurations.items() if isinstance(value, str))
+                guess = difflib.get_close_matches(args[0], defined, n=1)
+                hint = f" (did you mean '{guess[0]}'?)" if guess else ""
+                raise LaunchFileError(f"launch configuration '{args[0]}' is not defined{hint}", where)
             return scope.configurations[args[0]]
         if kind == "env":
             if args[0] in scope.env:
