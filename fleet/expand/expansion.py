@@ -6,6 +6,7 @@ failed `fleet render` or `fleet deploy` leaves nothing half-written or half-depl
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -84,7 +85,7 @@ class RobotPlan:
         as the value of a node started without the parameter file that the launch file does not
         give it either: it keeps its own default."""
         if found := self.inline.get(node, {}).get(name):
-            return Setting(found.value, INLINE_LAYER, str(self.launch_place(found.where)))
+            return Setting(found.shown, INLINE_LAYER, str(self.launch_place(found.where)))
         if node in self.without_file and (node, name) in self.parameters.history:
             return Setting(None, INLINE_LAYER, str(self.launch_place(self.without_file[node])))
         return None
@@ -329,7 +330,7 @@ def _unused_for_inline(plan: RobotPlan) -> dict[tuple[str, str], str]:
                 place = plan.launch_place(inline.where)
                 warnings[(node, name)] = (
                     f"{history[-1].source}: {node}.{name} is not used: the launch file gives it inline after the "
-                    f"parameter file ({place}: {value_text(inline.value)}), and that value wins; "
+                    f"parameter file ({place}: {value_text(inline.shown)}), and that value wins; "
                     "set it through the template's launch arguments, if it has one"
                 )
     return warnings
@@ -464,17 +465,19 @@ def _shared_layers(
     key = (template, node_names)
     if key in cache:
         return cache[key]
-    defaults, defaults_file, defaults_source = _template_defaults(templates, template)
+    defaults, defaults_source = _template_defaults(templates, template)
     layers = ParameterLayers()
     layers.hosted = tuple(node for node in defaults if "/" in node)
     for node, values in defaults.items():
-        if node not in node_names and node not in layers.hosted:
-            raise TemplateError(
-                f"defaults for node {node!r}, which template {template!r} does not start "
-                f"(nodes: {', '.join(sorted(node_names))})",
-                Location(defaults_file),
-            )
         assert defaults_source is not None  # there are defaults only when read from a file
+        if node not in node_names and node not in layers.hosted:
+            guess = difflib.get_close_matches(node, sorted(node_names), n=1)
+            raise TemplateError(
+                f"defaults for node {node!r}, which template {template!r} does not start"
+                + (f" (did you mean {guess[0]!r}?)" if guess else "")
+                + f" (nodes: {', '.join(sorted(node_names))})",
+                defaults_source.locate((node,), key=True),
+            )
         layers.add(node, values, "template", _file_place(defaults_source, node))
     for node, values in spec.defaults.parameters.items():
         if node in node_names or node in layers.hosted:
@@ -515,16 +518,14 @@ def _spec_location(spec: FleetSpec, path: DocPath) -> Location:
     return spec._source_map.locate(path, key=True)
 
 
-def _template_defaults(
-    templates: TemplateSet, template: str
-) -> tuple[dict[str, dict[str, Any]], Path | None, SourceMap | None]:
+def _template_defaults(templates: TemplateSet, template: str) -> tuple[dict[str, dict[str, Any]], SourceMap | None]:
     path = templates.defaults_file(template)
     if path is None:
-        return {}, None, None
+        return {}, None
     # Its top-level keys are nodes; everything below is a node's parameters, typed as rcl types them.
     data, source = load_yaml(read_input(path, "template parameter defaults"), path, ((None,),))
     if data is None:
-        return {}, path, source
+        return {}, source
     if not isinstance(data, dict):
         raise TemplateError("parameter defaults must map node names to parameter mappings", Location(path, 1))
     for node, values in data.items():
@@ -537,7 +538,7 @@ def _template_defaults(
     from fleet.spec.load import check_parameters
 
     check_parameters(data, (), source)
-    return data, path, source
+    return data, source
 
 
 def _apply_overrides(spec: FleetSpec, robots: list[RobotPlan], overrides: list[Override]) -> None:

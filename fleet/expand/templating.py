@@ -61,6 +61,15 @@ def builtin_template_dirs() -> list[Path]:
 _GLOBAL_NAMES = {id(value): name for name, value in {**jinja2.defaults.DEFAULT_NAMESPACE, "range": safe_range}.items()}
 
 
+class LaunchBool(str):
+    """A boolean launch argument's value as launch files spell it, "true" or "false", which a
+    template's `{% if arg("enable_x", true) %}` (around a share(...), say) reads as the boolean
+    it is: as plain text, "false" would hold there too."""
+
+    def __bool__(self) -> bool:
+        return self == "true"
+
+
 def yaml_literal(value: Any) -> str:
     """A value as a YAML flow literal that parses back to exactly that value."""
     if isinstance(value, jinja2.Undefined):
@@ -334,7 +343,7 @@ class TemplateSet:
             asked[arg_name] = default
             value = arguments.get(arg_name, default)
             # Launch arguments are strings; booleans in the ROS launch spelling.
-            return ("true" if value else "false") if isinstance(value, bool) else str(value)
+            return LaunchBool("true" if value else "false") if isinstance(value, bool) else str(value)
 
         shared: list[SharedTopic] = []
         namespace = context.get("robot", {}).get("namespace", "/")

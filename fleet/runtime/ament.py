@@ -9,6 +9,7 @@ and one small Python script per executable that imports `fleet.nodes.<exe>` and 
 
 from __future__ import annotations
 
+import difflib
 import os
 import re
 import sys
@@ -117,7 +118,22 @@ def find_package_prefix(package: str, search_path: str) -> Path:
         if (Path(entry) / INDEX_DIR / package).is_file():
             return Path(entry)
     searched = ", ".join(prefixes) or "(AMENT_PREFIX_PATH is empty)"
-    raise LaunchFileError(f"package '{package}' not found in the ament index (searched: {searched})")
+    indexed = {path.name for entry in prefixes for path in _listing(Path(entry) / INDEX_DIR)}
+    raise LaunchFileError(
+        f"package '{package}' not found in the ament index{_did_you_mean(package, indexed)} (searched: {searched})"
+    )
+
+
+def _listing(directory: Path) -> list[Path]:
+    try:
+        return list(directory.iterdir())
+    except OSError:
+        return []
+
+
+def _did_you_mean(name: str, names: set[str]) -> str:
+    guess = difflib.get_close_matches(name, sorted(names), n=1)
+    return f" (did you mean '{guess[0]}'?)" if guess else ""
 
 
 _NOT_FOUND = re.compile(r"package '([^']+)' not found in the ament index")
@@ -148,7 +164,11 @@ def find_executable(package: str, executable: str, search_path: str) -> Path:
     candidate = prefix / "lib" / package / executable
     if candidate.is_file() and os.access(candidate, os.X_OK):
         return candidate
+    # Say what the package has: a typo is the usual cause, and the paths are long (an error
+    # line keeps 300 characters, cutting the middle of what is longer).
+    has = {path.name for path in _listing(candidate.parent) if path.is_file() and os.access(path, os.X_OK)}
+    listed = ", ".join(sorted(has)) or "no executable"
     raise LaunchFileError(
-        f"executable '{executable}' of package '{package}' not found: no executable file "
-        f"{candidate} (package found in prefix {prefix}; searched: {', '.join(_prefixes(search_path))})"
+        f"executable '{executable}' of package '{package}' not found{_did_you_mean(executable, has)}: "
+        f"{candidate.parent} holds {listed}"
     )

@@ -13,6 +13,7 @@ files (launch_ros does the same) and the command lines assembled.
 
 from __future__ import annotations
 
+import difflib
 import os
 import re
 import tempfile
@@ -241,17 +242,20 @@ class _Interpreter:
             if args[0] not in scope.configurations or not isinstance(scope.configurations[args[0]], str):
                 if self.unknown_configurations:
                     return _UNKNOWN
-                raise LaunchFileError(f"launch configuration '{args[0]}' is not defined", where)
+                defined = sorted(name for name, value in scope.configurations.items() if isinstance(value, str))
+                guess = difflib.get_close_matches(args[0], defined, n=1)
+                hint = f" (did you mean '{guess[0]}'?)" if guess else ""
+                raise LaunchFileError(f"launch configuration '{args[0]}' is not defined{hint}", where)
             return scope.configurations[args[0]]
         if kind == "env":
             if args[0] in scope.env:
                 return scope.env[args[0]]
             if args[0] in self.base_env and args[0] not in scope.unset:
                 return self.base_env[args[0]]
+            if self.bundle is not None and args[0] not in scope.unset:
+                return _UNKNOWN  # the agent's environment decides, not the default (checked first)
             if len(args) == 2:
                 return args[1]
-            if self.bundle is not None:
-                return _UNKNOWN
             raise LaunchFileError(f"environment variable '{args[0]}' is not set", where)
         if kind == "dirname":
             return str(file.parent)
@@ -581,7 +585,9 @@ class _Interpreter:
         if not isinstance(value, tuple):
             return value  # a YAML scalar, already typed
         text = self.resolve(value, scope, where, file)
-        if (not typed and all(isinstance(part, str) for part in value)) or _UNKNOWN in text:
+        if _UNKNOWN in text:  # kept as written, so that render can show it (InlineSetting.shown)
+            return _UNKNOWN + _written(value)
+        if not typed and all(isinstance(part, str) for part in value):
             return text
         if text == "":
             return ""
@@ -731,6 +737,18 @@ class InlineSetting:
         computer that runs the file can tell (`$(env ...)`, `$(find-pkg-share ...)`)."""
         items = self.value if isinstance(self.value, list) else [self.value]
         return not any(isinstance(item, str) and _UNKNOWN in item for item in items)
+
+    @property
+    def shown(self) -> Any:
+        """The value for people to read: one only the agent's computer can tell as the launch
+        file writes it (`$(env ROUTE)`), not as the marker it holds here."""
+        if isinstance(self.value, list):
+            return [_without_marker(item) for item in self.value]
+        return _without_marker(self.value)
+
+
+def _without_marker(value: Any) -> Any:
+    return value.replace(_UNKNOWN, "") if isinstance(value, str) else value
 
 
 def check_bundle_launch(

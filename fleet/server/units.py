@@ -319,7 +319,8 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
         for fqn in list(pending):
             section = data.get(fqn)
             if isinstance(section, dict) and isinstance(section.get("ros__parameters"), dict):
-                section["ros__parameters"].update(pending.pop(fqn))
+                for parameter, value in pending.pop(fqn).items():
+                    _put_parameter(section["ros__parameters"], parameter, value)
                 changed = True
         if changed:
             result[name] = _dump_params(data)
@@ -329,6 +330,20 @@ def with_overrides(files: dict[str, str], overrides: dict[str, dict[str, Any]]) 
             data[fqn] = {"ros__parameters": values}
         result[params_files[0]] = _dump_params(data)
     return result
+
+
+def _put_parameter(parameters: dict[str, Any], name: str, value: Any) -> None:
+    """Set parameter `name` (dotted, as ROS names it: `pid.kp`) where the file already writes it,
+    nested (`pid: {kp: ...}`) or dotted: a second key for it beside the first would be one
+    parameter written twice, which render refuses in a spec and rcl settles by order alone."""
+    tokens = name.split(".")
+    level = parameters
+    for depth, token in enumerate(tokens):
+        rest = ".".join(tokens[depth:])
+        if rest in level or not isinstance(level.get(token), dict):
+            level[rest] = value
+            return
+        level = level[token]  # the last token is always set above: `rest` is that token
 
 
 def _dump_params(data: dict) -> str:

@@ -301,7 +301,7 @@ def test_a_robot_that_cannot_start_on_its_agent_leaves_the_whole_fleet_as_it_was
     assert done.returncode == 2, done.stdout + done.stderr
     problem, verdict = done.stderr.splitlines()
     assert problem.startswith("fleet: error: robot3 cannot start on agent hostB: robot3/robot3.launch.yaml:"), problem
-    assert "executable 'sleepr' of package 'fleet_test' not found" in problem, problem
+    assert "executable 'sleepr' of package 'fleet_test' not found (did you mean 'sleeper'?)" in problem, problem
     assert verdict == "nothing was deployed: every robot runs as it was"
     as_json = cluster.cli(*args, "--json")
     assert as_json.returncode == 2, as_json.stdout + as_json.stderr

@@ -258,6 +258,21 @@ def test_overrides_are_merged_into_the_params_file():
     assert with_overrides(files, {}) == files
 
 
+def test_an_override_of_a_nested_parameter_is_written_where_the_file_has_it():
+    """`fleet param set r1 wanderer a.b 3.0` of a parameter the file nests (`a: {b: 2.5}`) used
+    to add a key `a.b` beside it: one parameter written twice, which rcl settles by order."""
+    section = {"a": {"b": 2.5, "c": {"d": 1}}, "x.y": 1.0, "speed": 0.2}
+    files = {"r1.params.yaml": yaml.safe_dump({"/r1/wanderer": {"ros__parameters": section}})}
+    overrides = {"a.b": 3.0, "a.c.d": 2, "x.y": 4.0, "a.e": True, "label": "gamma"}
+    merged = with_overrides(files, {"/r1/wanderer": overrides})
+    assert yaml.safe_load(merged["r1.params.yaml"])["/r1/wanderer"]["ros__parameters"] == {
+        "a": {"b": 3.0, "c": {"d": 2}, "e": True},
+        "x.y": 4.0,
+        "speed": 0.2,
+        "label": "gamma",
+    }
+
+
 def test_a_params_file_of_aliases_is_not_expanded_by_the_agent():
     bomb = "".join(f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10) if i else '1'}]\n" for i in range(9))
     files = {"robot1.params.yaml": bomb + "/robot1/controller: {ros__parameters: {max_speed: 0.5}}\n"}

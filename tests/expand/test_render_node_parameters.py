@@ -324,6 +324,22 @@ def test_values_only_the_agents_computer_can_tell_are_left_to_the_node(tmp_path,
     assert run_fleet(["render", str(spec), "-o", str(tmp_path / "out")]) == 0
 
 
+def test_an_environment_variable_with_a_default_is_left_to_the_agent_and_explained_as_written(tmp_path):
+    """`$(env SPEED 9.0)` is the agent's SPEED when it has one; the default counts only where it
+    has none, which render cannot tell.  Render used to take the default as the value: it refused
+    the template for a default the agent's environment overrides, and `--explain` called the
+    default effective (or, without a default, showed fleet's internal marker)."""
+    from fleet.cli.plan_view import explain_data
+
+    given = ("{name: max_speed, value: $(env SPEED 9.0)}", "{name: max_speed, value: $(env SPEED)}")
+    for number, inline in enumerate(given):
+        (tmp_path / str(number)).mkdir()
+        spec = controller_given(tmp_path / str(number), inline)
+        expansion = expand_fleet(parse_spec(spec.read_text(), str(spec)))
+        written = inline.split("value: ")[1].rstrip("}")
+        assert explain_data(expansion, "a.controller.max_speed")["value"] == written
+
+
 def test_a_node_started_without_the_parameter_file_is_checked_by_what_it_is_given_inline(tmp_path, capsys):
     templates = tmp_path / "templates"
     templates.mkdir()

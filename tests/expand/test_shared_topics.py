@@ -65,6 +65,32 @@ def test_relative_names_resolve_in_each_robots_namespace_absolute_ones_are_fleet
     assert expansion.robots[0].shared[0].transient_local
 
 
+def test_a_share_under_a_boolean_launch_argument_follows_each_robots_value(tmp_path):
+    """`{% if arg("enable_x", true) %}` around a share(...) of a node that the same argument
+    starts: arg() gave the text "false", which Jinja's `if` held true, so a robot without the
+    node still declared its topic (and status reported it without a publisher, forever)."""
+    templates = tmp_path / "my_templates"
+    templates.mkdir()
+    (templates / "custom.launch.yaml.j2").write_text(
+        "launch:\n- arg: {name: enable_x, default: {{ arg('enable_x', true) }}}\n"
+        "{% if arg('enable_x', true) %}{{ share('x', 'std_msgs/msg/String', robot='publishes') }}{% endif %}\n"
+        "{% if not arg('enable_x', true) %}{{ share('y', 'std_msgs/msg/String', robot='publishes') }}{% endif %}\n"
+        "- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: fleet_nodes, exec: battery, name: battery}\n"
+    )
+    spec = tmp_path / "fleet.yaml"
+    spec.write_text(
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\n"
+        "robots:\n- {name: a}\n- {name: b, launch_args: {enable_x: false}}\n"
+    )
+    expansion = expand_fleet(load_spec(spec))
+    assert {robot.name: [topic.name for topic in robot.shared] for robot in expansion.robots} == {
+        "a": ["/a/x"],
+        "b": ["/b/y"],
+    }
+    assert 'default: "false"' in expansion.robots[1].launch_text
+
+
 def test_a_topic_published_and_read_on_two_agents_goes_both_ways(tmp_path):
     expansion = expand_fleet(load_spec(write_fleet(tmp_path, ANNOUNCE)))
     both = (["/fleet/announcements"], ["/fleet/announcements"])

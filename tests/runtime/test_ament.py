@@ -59,6 +59,26 @@ def test_find_executable_first_prefix_wins(prefix, tmp_path):
         ament.find_executable("demo", "talker", search)
 
 
+def test_a_mistyped_package_or_executable_is_told_what_there_is(prefix, tmp_path):
+    """A typo is the usual cause.  The executable's error used to name only the file it looked
+    for, between two long path lists, and a deploy's one error line (300 characters) cut out
+    the middle of it: it now says what the package holds and the closest name."""
+    prefix.add("wanderer", "#!/bin/sh\n")
+    prefix.add("announcer", "#!/bin/sh\n")
+    long_prefix = tmp_path / ("x" * 150)
+    search = f"{long_prefix}:{prefix.root}"
+    with pytest.raises(LaunchFileError) as caught:
+        ament.find_executable("demo", "wandrer", search)
+    problem = str(caught.value)
+    assert "executable 'wandrer' of package 'demo' not found (did you mean 'wanderer'?)" in problem
+    assert problem.endswith(f"{prefix.root / 'lib' / 'demo'} holds announcer, wanderer"), problem
+    assert str(long_prefix) not in problem
+    typo = r"package 'dmeo' not found in the ament index \(did you mean 'demo'\?\)"
+    with pytest.raises(LaunchFileError, match=typo) as caught:
+        ament.find_executable("dmeo", "wanderer", search)
+    assert ament.missing_package(str(caught.value)) == "dmeo"  # deploy's hint still finds the name
+
+
 def test_find_executable_errors_name_everything(prefix):
     prefix.add("talker", "#!/bin/sh\n")
     with pytest.raises(LaunchFileError) as caught:

@@ -434,6 +434,16 @@ def test_undefined_var(load):
     )
 
 
+def test_a_mistyped_launch_configuration_is_told_the_closest_defined_one(load):
+    refused(
+        load,
+        "launch:\n- arg: {name: scan_topic, default: scan}\n"
+        "- node: {pkg: demo, exec: talker, name: n, remap: [{from: scan, to: $(var scan_topc)}]}\n",
+        "launch configuration 'scan_topc' is not defined (did you mean 'scan_topic'?)",
+        line=3,
+    )
+
+
 # -- refusals -------------------------------------------------------------------------------
 
 

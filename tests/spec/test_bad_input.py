@@ -278,6 +278,26 @@ def test_template_defaults_of_a_node_that_are_no_mapping_are_placed_at_the_node(
     )
 
 
+def test_template_defaults_of_a_node_the_template_does_not_start_are_placed_at_the_node(tmp_path, capsys):
+    """A mistyped node name in a template's defaults (`announcr:`) was refused naming the file
+    alone, with no line and no hint."""
+    templates = write_templates(
+        tmp_path,
+        "launch:\n- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+        "  - node: {pkg: a, exec: b, name: announcer, param: [{from: {{ params_file }}}]}\n",
+    )
+    (templates / "custom.params.yaml").write_text("announcer: {x: 1}\nannouncr:\n  x: 2\n")
+    line = render_bad(
+        tmp_path,
+        capsys,
+        f"fleet: demo\ntemplates: {templates}\ndefaults: {{template: custom}}\nrobots: [{{name: r1}}]\n",
+    )
+    assert line == (
+        f"fleet: error: {templates / 'custom.params.yaml'}:2:1: defaults for node 'announcr', which template "
+        "'custom' does not start (did you mean 'announcer'?) (nodes: announcer)"
+    )
+
+
 @pytest.mark.parametrize(
     "node, problem",
     [
