@@ -70,8 +70,8 @@ def endpoint_problem(endpoint: str) -> str | None:
         return f"endpoint {endpoint!r} has no port from 0 to 65535 (such as {EXAMPLE})"
     if host.startswith("[") and host.endswith("]"):
         host = host[1:-1]
-    elif ":" in host:
-        return f"endpoint {endpoint!r}: an IPv6 address goes in brackets ([{host}])"
+    elif ":" in host and host_problem(host) is None:  # an IPv6 address; anything else is no host
+        return f"endpoint {endpoint!r}: an IPv6 address goes in brackets ({protocol}/[{host}]:{port})"
     problem = host_problem(host)
     return f"endpoint {endpoint!r}: {problem}" if problem else None
 

@@ -204,6 +204,10 @@ def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
         (["status", "--connect", "tcp/10.0.0.1"], "has no port from 0 to 65535"),
         (["deploy", str(FLEETS / "two_robots.yaml"), "--connect", "tcp/[::1]:70000"], "has no port from 0 to 65535"),
         (["router", "--listen", "tcp/bad_host!:7447"], "'bad_host!' is not a host name or an IP address"),
+        (["status", "--connect", "tcp/::1:7447"], "an IPv6 address goes in brackets (tcp/[::1]:7447)"),
+        # Only an IPv6 address is told to go in brackets: other text with a colon is no host.
+        (["status", "--connect", "tcp/10.0.0.1:7447,tcp/10.0.0.2:7447"], "'10.0.0.1:7447,tcp/10.0.0.2' is not an IP"),
+        (["status", "--connect", "tcp/[::1:7447"], "'[::1' is not an IP address"),
     ],
 )
 def test_an_endpoint_that_is_not_an_address(capsys, args, expected):
