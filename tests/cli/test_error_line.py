@@ -90,6 +90,32 @@ def test_a_zenoh_config_that_is_a_directory_is_said_so(tmp_path, capsys):
     assert line == f"fleet: error: {tmp_path}: a directory, not a Zenoh config file"
 
 
+@pytest.mark.parametrize(
+    "name, text, expected",
+    [
+        (
+            "zenoh.json5",
+            '{mode: "client",\n  connect: {endpoints: [1,}\n',
+            ":2:27: invalid Zenoh config: expected array, ",
+        ),
+        ("zenoh.json5", "{mode: 5}", ":1:8: invalid Zenoh config: invalid type: integer `5`, expected either 'router'"),
+        ("zenoh.yaml", "mode: client\nconnect:\n  endpoints: 5\n", ":3:14: invalid Zenoh config: connect.endpoints: "),
+        (
+            "zenoh.txt",
+            "{}",
+            ": invalid Zenoh config: Unsupported file type '.txt' (.json, .json5 and .yaml are supported)",
+        ),
+    ],
+)
+def test_a_zenoh_config_zenoh_cannot_read_is_placed_at_its_line(tmp_path, capsys, name, text, expected):
+    """At the place in the file Zenoh names: not in a caret drawn over several lines (JSON5
+    syntax), nor with the place in Zenoh's Rust source that noticed it."""
+    config = tmp_path / name
+    config.write_text(text)
+    line = one_error_line(capsys, ["status", "--zenoh-config", str(config)])
+    assert line.startswith(f"fleet: error: {config}{expected}") and ".rs:" not in line, line
+
+
 def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
     spec = tmp_path / "fleet.yaml"
     spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
