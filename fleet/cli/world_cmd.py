@@ -72,7 +72,10 @@ def register(app: typer.Typer) -> None:
             from fleet.world.description import load_world
 
             obstacles = [obstacle_dict(o) for o in load_world(config).obstacles]
-        draw_snapshot(document.model_dump(exclude_none=True), output, obstacles=obstacles)
+        try:
+            draw_snapshot(document.model_dump(exclude_none=True), output, obstacles=obstacles)
+        except OSError as error:  # -o names a directory, a read-only place, ...
+            raise FleetError(f"cannot write the picture: {error.strerror}", Location(output)) from None
         typer.echo(f"wrote {output}")
 
 
