@@ -116,6 +116,14 @@ def test_a_zenoh_config_zenoh_cannot_read_is_placed_at_its_line(tmp_path, capsys
     assert line.startswith(f"fleet: error: {config}{expected}") and ".rs:" not in line, line
 
 
+def test_certs_into_a_place_no_directory_can_be_made(tmp_path, capsys):
+    """Said as render says it, not as a traceback from the authority's mkdir."""
+    (tmp_path / "file").write_text("")
+    out = tmp_path / "file" / "certs"
+    line = one_error_line(capsys, ["certs", str(FLEETS / "two_robots.yaml"), "--out", str(out)])
+    assert line == f"fleet: error: {out}: cannot write {out}: Not a directory"
+
+
 def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
     spec = tmp_path / "fleet.yaml"
     spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
