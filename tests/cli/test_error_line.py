@@ -124,6 +124,21 @@ def test_certs_into_a_place_no_directory_can_be_made(tmp_path, capsys):
     assert line == f"fleet: error: {out}: cannot write {out}: Not a directory"
 
 
+def test_a_state_directory_no_directory_can_be_is_refused_before_anything_starts(capsys, monkeypatch, tmp_path):
+    """$FLEET_STATE_DIR or --state-dir naming a file (or a place under one): one line, not a
+    traceback from the daemon's mkdir."""
+    file = tmp_path / "state"
+    file.write_text("")
+    monkeypatch.setenv("FLEET_STATE_DIR", str(file))
+    for args in (["up"], ["down", "--all"]):
+        line = one_error_line(capsys, args)
+        assert line == f"fleet: error: {file}: state directory ($FLEET_STATE_DIR) is a file, not a directory", line
+    under = file / "agent"
+    line = one_error_line(capsys, ["agent", "--name", "a1", "--connect", "tcp/127.0.0.1:1", "--state-dir", str(under)])
+    assert line == f"fleet: error: {under}: state directory cannot be made: {file} is a file, not a directory", line
+    assert file.read_text() == ""
+
+
 def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
     spec = tmp_path / "fleet.yaml"
     spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
