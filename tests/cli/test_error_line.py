@@ -3,10 +3,13 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
 from fleet.errors import MAX_LINE, FleetError, Location, one_line
-from tests.checkout import FLEETS
+from tests.checkout import FLEETS, run_fleet
 from tests.spec.test_bad_input import run_cli
 
 BOMB = "launch:\n" + "".join(
@@ -137,6 +140,21 @@ def test_a_state_directory_no_directory_can_be_is_refused_before_anything_starts
     line = one_error_line(capsys, ["agent", "--name", "a1", "--connect", "tcp/127.0.0.1:1", "--state-dir", str(under)])
     assert line == f"fleet: error: {under}: state directory cannot be made: {file} is a file, not a directory", line
     assert file.read_text() == ""
+
+
+def test_a_world_status_file_the_world_could_not_write_is_refused_before_it_starts(tmp_path):
+    """It wrote a traceback a few times a second instead (a subprocess: a world that starts runs
+    until it is stopped)."""
+    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "-o", str(tmp_path / "out")]) == 0
+    config = tmp_path / "out" / "world" / "world.yaml"
+    (tmp_path / "file").write_text("")
+    for status_file, problem in [
+        (tmp_path, "the status file is a directory: give a file's name"),
+        (tmp_path / "file" / "w.json", "the status file's directory is a file, not a directory"),
+    ]:
+        args = ["world", "--config", str(config), "--status-file", str(status_file)]
+        done = subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and done.stderr == f"fleet: error: {status_file}: {problem}\n", done.stderr
 
 
 def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
