@@ -173,7 +173,10 @@ def test_run_names_the_problem_and_offers_ros2_launch_only_where_it_runs_the_fil
     no_ros2 = " (and `ros2` is not on PATH to run it with ros2 launch)"
     missing = tmp_path / "robot1.py"
     line = one_error_line(capsys, ["run", str(missing)])
-    assert line == f"fleet: error: {missing}: cannot read launch file: no such launch file"
+    assert line == f"fleet: error: {missing}: no such launch file"
+    # Said once, as read_input says it of every input file (it was "cannot read launch file: " twice).
+    line = one_error_line(capsys, ["run", str(tmp_path)])
+    assert line == f"fleet: error: {tmp_path}: cannot read launch file: Is a directory"
     bad = tmp_path / "bad.launch.yaml"
     bad.write_text("launch: [\n")
     line = one_error_line(capsys, ["run", str(bad)])
