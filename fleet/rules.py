@@ -125,9 +125,27 @@ STATE_VARIABLE = "FLEET_STATE_DIR"
 
 def state_dir() -> Path:
     """Absolute: the daemon's agents leave the working directory for their own (a relative
-    FLEET_STATE_DIR had the daemon's router write its registry under the agent's directory)."""
+    FLEET_STATE_DIR had the daemon's router write its registry under the agent's directory).
+    Refused (FleetError) where no directory can be."""
     value = os.environ.get(STATE_VARIABLE)
-    return Path(os.path.abspath(Path(value).expanduser())) if value else Path.home() / ".local" / "state" / "fleet"
+    path = Path(os.path.abspath(Path(value).expanduser())) if value else Path.home() / ".local" / "state" / "fleet"
+    if problem := directory_problem(path):
+        from fleet.errors import FleetError, Location
+
+        raise FleetError(f"state directory (${STATE_VARIABLE}) {problem}", Location(path))
+    return path
+
+
+def directory_problem(path: Path) -> str | None:
+    """Why no directory can be at `path` (it is a file, or a file is where a directory above it
+    would be), or None: it is one, or it can be made."""
+    for place in (path, *path.parents):
+        if place.exists():
+            if place.is_dir():
+                return None
+            where = "is" if place == path else f"cannot be made: {place} is"
+            return f"{where} a file, not a directory"
+    return None
 
 
 def daemon_pid_file(root: Path) -> Path:

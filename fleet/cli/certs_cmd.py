@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from fleet.errors import FleetError
+from fleet.errors import FleetError, Location
 
 
 def register(app: typer.Typer) -> None:
@@ -49,29 +49,10 @@ def certs(
     if out.exists() and not out.is_dir():
         raise FleetError(f"{out}: not a directory")
 
-    made: list[str] = []
-    if not (out / c.CA_CERT).exists():
-        c.create_authority(out, expansion.fleet)
-        made.append(c.CA_CERT)
-    authority = c.read_certificate(out / c.CA_CERT)
-    if c.organization(authority) != expansion.fleet:
-        held = c.organization(authority)
-        raise FleetError(f"{out / c.CA_CERT}: the authority of fleet {held!r}, not {expansion.fleet!r}")
-    members = [c.Member(security.ROUTER, server=True, addresses=tuple(router_address))]
-    members += [c.Member(name) for name in agents + list(operator)]
-    for member in members:
-        if not c.cert_path(out, member.name).exists():
-            c.issue(out, member, days=days)
-            made.append(c.cert_path(out, member.name).name)
-
-    # Operators made by an earlier run keep their access: a run names only those it adds.
-    earlier = [name for name in security.configured_members(out, "operator") if name not in agents]
-    operators = sorted({*operator, *earlier})
-    configs = {security.config_path(out, security.ROUTER): security.router_config(out, agents, operators)}
-    configs |= {security.config_path(out, "agent", name): security.member_config(out, name) for name in agents}
-    configs |= {security.config_path(out, "operator", name): security.member_config(out, name) for name in operators}
-    for path, config in configs.items():
-        security.write_config(path, config)
+    try:
+        made, configs = _write_certificates(expansion.fleet, out, agents, operator, router_address, days)
+    except OSError as error:  # OUT under a file, on a read-only disk, ...: said as render says it
+        raise FleetError(f"cannot write {error.filename or out}: {error.strerror}", Location(out)) from None
 
     if json:
         print_json({"directory": str(out), "created": made, "configs": [str(path) for path in configs]})
@@ -91,6 +72,40 @@ def certs(
             "computers cannot verify the router. For them, give --router-address with the address "
             "they dial, into a new --out directory (an existing certificate is kept)."
         )
+
+
+def _write_certificates(
+    fleet: str, out: Path, agents: list[str], operator: list[str], router_address: list[str], days: int
+) -> tuple[list[str], dict[Path, dict]]:
+    """Complete the authority, certificates and configs in `out`: the names of the certificates
+    made, and the configs written."""
+    from fleet.wire import certificates as c
+    from fleet.wire import security
+
+    made: list[str] = []
+    if not (out / c.CA_CERT).exists():
+        c.create_authority(out, fleet)
+        made.append(c.CA_CERT)
+    authority = c.read_certificate(out / c.CA_CERT)
+    if c.organization(authority) != fleet:
+        held = c.organization(authority)
+        raise FleetError(f"{out / c.CA_CERT}: the authority of fleet {held!r}, not {fleet!r}")
+    members = [c.Member(security.ROUTER, server=True, addresses=tuple(router_address))]
+    members += [c.Member(name) for name in agents + list(operator)]
+    for member in members:
+        if not c.cert_path(out, member.name).exists():
+            c.issue(out, member, days=days)
+            made.append(c.cert_path(out, member.name).name)
+
+    # Operators made by an earlier run keep their access: a run names only those it adds.
+    earlier = [name for name in security.configured_members(out, "operator") if name not in agents]
+    operators = sorted({*operator, *earlier})
+    configs = {security.config_path(out, security.ROUTER): security.router_config(out, agents, operators)}
+    configs |= {security.config_path(out, "agent", name): security.member_config(out, name) for name in agents}
+    configs |= {security.config_path(out, "operator", name): security.member_config(out, name) for name in operators}
+    for path, config in configs.items():
+        security.write_config(path, config)
+    return made, configs
 
 
 def _made_summary(made: list[str]) -> str:

@@ -34,10 +34,20 @@ def router(
     from fleet.server.router import run_router
     from fleet.wire.session import DEFAULT_ENDPOINT, config_file
 
+    _check_state_dir(state_dir)
     _logging()
     config = config_file(zenoh_config)
     endpoints = listen or ([] if config else [DEFAULT_ENDPOINT])
     run_router(endpoints, config, state_dir, stop_on_signals())
+
+
+def _check_state_dir(directory: Path | None) -> None:
+    """--state-dir names a directory, or a place one can be made."""
+    from fleet.errors import FleetError, Location
+    from fleet.rules import directory_problem
+
+    if directory is not None and (problem := directory_problem(directory)):
+        raise FleetError(f"state directory {problem}", Location(directory))
 
 
 def agent(
@@ -65,6 +75,7 @@ def agent(
         raise FleetError(f"agent name {problem}", Location("--name"))
     if address is not None and (problem := address_problem(address)):
         raise FleetError(problem, Location("--address"))
+    _check_state_dir(state_dir)
     config = config_file(zenoh_config)
     check_identity(name, config)
     _logging()

@@ -110,13 +110,10 @@ def check_output_directory(output: Path) -> None:
     """-o names a directory fleet may write into (new, empty or an earlier render's), or a place
     where one can be made: refused before anything is done."""
     from fleet.errors import FleetError, Location
+    from fleet.rules import directory_problem
 
-    for place in (output, *output.parents):
-        if place.exists():
-            if not place.is_dir():
-                problem = "is a file" if place == output else f"cannot be made: {place} is a file"
-                raise FleetError(f"output directory {problem}, not a directory", Location(output))
-            break
+    if problem := directory_problem(output):
+        raise FleetError(f"output directory {problem}", Location(output))
     try:
         foreign = output.is_dir() and not (output / RENDER_MANIFEST).is_file() and any(output.iterdir())
     except OSError as error:

@@ -28,9 +28,15 @@ def register(app: typer.Typer) -> None:
 
         Robots join and leave as world.yaml changes on disk.
         """
+        from fleet.rules import directory_problem
         from fleet.world.description import load_world
 
         load_world(config)  # fail fast with one line, before pybullet and rclpy load
+        if status_file is not None:  # the world writes it a few times a second, from the start
+            if status_file.is_dir():
+                raise FleetError("the status file is a directory: give a file's name", Location(status_file))
+            if problem := directory_problem(status_file.parent):
+                raise FleetError(f"the status file's directory {problem}", Location(status_file))
         from fleet.world.app import run_world
 
         run_world(config, status_file, as_fast_as_possible=as_fast_as_possible)
@@ -72,7 +78,10 @@ def register(app: typer.Typer) -> None:
             from fleet.world.description import load_world
 
             obstacles = [obstacle_dict(o) for o in load_world(config).obstacles]
-        draw_snapshot(document.model_dump(exclude_none=True), output, obstacles=obstacles)
+        try:
+            draw_snapshot(document.model_dump(exclude_none=True), output, obstacles=obstacles)
+        except OSError as error:  # -o names a directory, a read-only place, ...
+            raise FleetError(f"cannot write the picture: {error.strerror}", Location(output)) from None
         typer.echo(f"wrote {output}")
 
 

@@ -39,10 +39,10 @@ from jinja2 import nodes
 from jinja2.compiler import CodeGenerator, Frame
 from jinja2.sandbox import ImmutableSandboxedEnvironment, safe_range
 
-from fleet.errors import Location, TemplateError
+from fleet.errors import FleetError, Location, TemplateError
 from fleet.expand.shared import SharedMark, SharedTopic, declare, merge
 from fleet.rules import PARAMS_SUFFIX, TEMPLATE_SUFFIX, template_name_problem
-from fleet.spec.yaml_source import MAX_TEXT_CHARS, number_text_hint
+from fleet.spec.yaml_source import MAX_TEXT_CHARS, YamlError, number_text_hint, read_input
 
 DEFAULTS_SUFFIX = PARAMS_SUFFIX  # a template's parameter defaults, beside it
 MAX_OUTPUT_CHARS = MAX_TEXT_CHARS  # a rendered launch file is read back as fleet's own input
@@ -236,6 +236,24 @@ def _render_bounded(template: jinja2.Template, context: dict[str, Any], seconds:
     return "".join(chunks)
 
 
+class _TemplateLoader(jinja2.FileSystemLoader):
+    """Jinja's file loader, reading each template (and each file one includes) as fleet reads every
+    input file (`read_input`): one that is not UTF-8, or larger than the limit, is refused with its
+    file and line, not with Python's words for a failed decode."""
+
+    def get_source(self, environment: jinja2.Environment, template: str) -> tuple[str, str, Callable[[], bool]]:
+        pieces = jinja2.loaders.split_template_path(template)  # refuses "..": never outside the directories
+        for directory in self.searchpath:
+            path = Path(directory, *pieces)
+            if path.is_file():
+                try:
+                    text = read_input(path, "template")
+                except YamlError as error:
+                    raise TemplateError(error.message, error.location) from None
+                return text, str(path), lambda: True  # read once: auto_reload is off
+        raise jinja2.TemplateNotFound(template)
+
+
 @dataclass
 class RenderedTemplate:
     text: str
@@ -251,7 +269,7 @@ class TemplateSet:
         self.directories = [Path(d) for d in directories]
         self.render_seconds = render_seconds
         self._environment = _BoundedEnvironment(
-            loader=jinja2.FileSystemLoader([str(d) for d in self.directories]),
+            loader=_TemplateLoader([str(d) for d in self.directories]),
             undefined=jinja2.StrictUndefined,
             finalize=yaml_literal,
             autoescape=False,
@@ -364,6 +382,8 @@ class TemplateSet:
             template = self._environment.get_template(path.name)  # the loader searches in the same order as find()
             text = _render_bounded(template, {**context, "arg": arg, "share": share}, self.render_seconds)
             shared = merge(shared)
+        except FleetError:  # placed already (a template file the loader could not read)
+            raise
         except jinja2.TemplateSyntaxError as error:
             raise TemplateError(
                 f"template syntax error: {error.message}", Location(error.filename or path, error.lineno)

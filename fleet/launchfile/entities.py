@@ -13,7 +13,7 @@ from typing import Any
 from xml.parsers import expat
 
 from fleet.errors import LaunchFileError, Location, SpecError
-from fleet.spec.yaml_source import SourceMap, YamlSyntaxError, load_yaml
+from fleet.spec.yaml_source import MAX_DEPTH, SourceMap, YamlSyntaxError, load_yaml
 
 YAML, XML = "yaml", "xml"
 
@@ -154,6 +154,8 @@ def xml_actions(text: str, file: str) -> list[Entity]:
 
     def start(tag: str, attributes: dict[str, str]) -> None:
         element = XmlEntity(tag, attributes, Location(file, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1))
+        if len(stack) >= MAX_DEPTH:  # the YAML frontend's bound: reading deeper recursed out of Python's stack
+            raise LaunchFileError(f"more than {MAX_DEPTH} nested elements: too deep for a fleet input", element.where)
         (stack[-1].elements if stack else roots).append(element)
         stack.append(element)
 

@@ -84,8 +84,8 @@ def read_launch_file(path: Path) -> d.LaunchDescription:
     path = Path(path).absolute()
     try:
         text = read_input(path, "launch")  # first: a file that is not there is said to be missing
-    except SpecError as problem:
-        raise LaunchFileError(f"cannot read launch file: {problem.message}", problem.location) from None
+    except SpecError as problem:  # worded as for every input file: "no such launch file", ...
+        raise LaunchFileError(problem.message, problem.location) from None
     if path.name.endswith(".py"):
         raise NeedsRos2Launch(
             "a Python launch file runs only under `ros2 launch`: it " + _NEEDS_ROS2 + "; the embedded runner "

@@ -4,7 +4,7 @@ their parameter services.
 Run by the agent as a subprocess, in the fleet's ROS environment (its ROS_DOMAIN_ID):
 
     python -m fleet.runtime.param_helper get /robot1/controller max_speed
-    python -m fleet.runtime.param_helper set /robot1/controller max_speed 0.8   # value as JSON
+    echo 0.8 | python -m fleet.runtime.param_helper set /robot1/controller max_speed   # value as JSON
     python -m fleet.runtime.param_helper list /robot1/controller /robot1/battery
 
 Prints one JSON line: {"v": 1, "kind": "param_reply", "ok": ..., "value": ..., "reason": ...};
@@ -206,7 +206,7 @@ def main(argv: list[str]) -> int:
         if op == "get":
             _reply(True, _python_value(current))
             return 0
-        value = _coerce(json.loads(argv[3]), current.type)
+        value = _coerce(json.loads(sys.stdin.read()), current.type)  # any size: not an argument
         try:
             message = Parameter(name, value=value).to_parameter_msg()
         except Exception as error:

@@ -1034,10 +1034,11 @@ def call_parameter_service(fqns: list[str], request: p.ParamRequest, env: dict[s
     command = [sys.executable, "-m", "fleet.runtime.param_helper", request.op, *fqns]
     if request.op != "list":
         command.append(request.name)
-    if request.op == "set":
-        command.append(json.dumps(request.value))
+    # The value goes on stdin: on the command line, a long one (a URDF for robot_description, whose
+    # every quote JSON escapes) passed the CLI's limit of 128 KiB per argument and failed the exec.
+    value = json.dumps(request.value) if request.op == "set" else ""
     try:
-        done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=p.PARAM_TIMEOUT)
+        done = subprocess.run(command, input=value, env=env, capture_output=True, text=True, timeout=p.PARAM_TIMEOUT)
     except subprocess.TimeoutExpired:
         return p.ParamReply(ok=False, reason=f"no answer from {', '.join(fqns)} within {p.PARAM_TIMEOUT:.0f} s")
     try:

@@ -70,8 +70,8 @@ def endpoint_problem(endpoint: str) -> str | None:
         return f"endpoint {endpoint!r} has no port from 0 to 65535 (such as {EXAMPLE})"
     if host.startswith("[") and host.endswith("]"):
         host = host[1:-1]
-    elif ":" in host:
-        return f"endpoint {endpoint!r}: an IPv6 address goes in brackets ([{host}])"
+    elif ":" in host and host_problem(host) is None:  # an IPv6 address; anything else is no host
+        return f"endpoint {endpoint!r}: an IPv6 address goes in brackets ({protocol}/[{host}]:{port})"
     problem = host_problem(host)
     return f"endpoint {endpoint!r}: {problem}" if problem else None
 
@@ -177,13 +177,38 @@ def _base_config(user_config: Path | None):
     try:
         config = zenoh.Config.from_file(str(user_config))
     except Exception as error:  # zenoh raises ZError with the parser's message
-        raise FleetError(f"invalid Zenoh config: {error}", Location(user_config)) from None
+        problem, line, column = config_parse_problem(str(error))
+        raise FleetError(f"invalid Zenoh config: {problem}", Location(user_config, line, column)) from None
     _read_files_beside(config, Path(os.path.abspath(user_config)).parent)  # lexical, as kubectl's
     try:
         _check_tls_files(config)
     except FleetError as error:  # a certificate's problem, at the place of the config that names it
         raise FleetError(error.message, Location(user_config)) from None
     return config
+
+
+# How Zenoh's parsers say where a config is wrong, and where in Zenoh's source it noticed.
+_CONFIG_PLACES = (
+    re.compile(
+        r'JSON error: Message \{ msg: "(?P<problem>.*)", '
+        r"location: Some\(Location \{ line: (?P<line>\d+), column: (?P<column>\d+) \}\) \}",
+        re.S,
+    ),
+    re.compile(r'YAML error: Error\("(?P<problem>.*)", line: (?P<line>\d+), column: (?P<column>\d+)\)', re.S),
+    re.compile(r"\s*--> (?P<line>\d+):(?P<column>\d+)\n.*\n\s*= (?P<problem>[^\n]*)", re.S),  # JSON5 syntax
+)
+_RUST_SOURCE = re.compile(r" at \S+\.rs:\d+\.?$")
+
+
+def config_parse_problem(message: str) -> tuple[str, int | None, int | None]:
+    """(problem, line, column) of Zenoh's message about a config file it cannot read: the place
+    in the file, not a caret drawn over several lines or the place in Zenoh's Rust source."""
+    message = _RUST_SOURCE.sub("", message.strip())
+    for pattern in _CONFIG_PLACES:
+        if match := pattern.fullmatch(message):
+            problem = re.sub(r"\\(.)", r"\1", match["problem"])  # Rust's Debug escapes of the quoted text
+            return problem, int(match["line"]), int(match["column"])
+    return message, None, None
 
 
 def _read_files_beside(config, directory: Path) -> None:

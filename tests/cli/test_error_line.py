@@ -3,10 +3,13 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
 from fleet.errors import MAX_LINE, FleetError, Location, one_line
-from tests.checkout import FLEETS
+from tests.checkout import FLEETS, run_fleet
 from tests.spec.test_bad_input import run_cli
 
 BOMB = "launch:\n" + "".join(
@@ -90,6 +93,70 @@ def test_a_zenoh_config_that_is_a_directory_is_said_so(tmp_path, capsys):
     assert line == f"fleet: error: {tmp_path}: a directory, not a Zenoh config file"
 
 
+@pytest.mark.parametrize(
+    "name, text, expected",
+    [
+        (
+            "zenoh.json5",
+            '{mode: "client",\n  connect: {endpoints: [1,}\n',
+            ":2:27: invalid Zenoh config: expected array, ",
+        ),
+        ("zenoh.json5", "{mode: 5}", ":1:8: invalid Zenoh config: invalid type: integer `5`, expected either 'router'"),
+        ("zenoh.yaml", "mode: client\nconnect:\n  endpoints: 5\n", ":3:14: invalid Zenoh config: connect.endpoints: "),
+        (
+            "zenoh.txt",
+            "{}",
+            ": invalid Zenoh config: Unsupported file type '.txt' (.json, .json5 and .yaml are supported)",
+        ),
+    ],
+)
+def test_a_zenoh_config_zenoh_cannot_read_is_placed_at_its_line(tmp_path, capsys, name, text, expected):
+    """At the place in the file Zenoh names: not in a caret drawn over several lines (JSON5
+    syntax), nor with the place in Zenoh's Rust source that noticed it."""
+    config = tmp_path / name
+    config.write_text(text)
+    line = one_error_line(capsys, ["status", "--zenoh-config", str(config)])
+    assert line.startswith(f"fleet: error: {config}{expected}") and ".rs:" not in line, line
+
+
+def test_certs_into_a_place_no_directory_can_be_made(tmp_path, capsys):
+    """Said as render says it, not as a traceback from the authority's mkdir."""
+    (tmp_path / "file").write_text("")
+    out = tmp_path / "file" / "certs"
+    line = one_error_line(capsys, ["certs", str(FLEETS / "two_robots.yaml"), "--out", str(out)])
+    assert line == f"fleet: error: {out}: cannot write {out}: Not a directory"
+
+
+def test_a_state_directory_no_directory_can_be_is_refused_before_anything_starts(capsys, monkeypatch, tmp_path):
+    """$FLEET_STATE_DIR or --state-dir naming a file (or a place under one): one line, not a
+    traceback from the daemon's mkdir."""
+    file = tmp_path / "state"
+    file.write_text("")
+    monkeypatch.setenv("FLEET_STATE_DIR", str(file))
+    for args in (["up"], ["down", "--all"]):
+        line = one_error_line(capsys, args)
+        assert line == f"fleet: error: {file}: state directory ($FLEET_STATE_DIR) is a file, not a directory", line
+    under = file / "agent"
+    line = one_error_line(capsys, ["agent", "--name", "a1", "--connect", "tcp/127.0.0.1:1", "--state-dir", str(under)])
+    assert line == f"fleet: error: {under}: state directory cannot be made: {file} is a file, not a directory", line
+    assert file.read_text() == ""
+
+
+def test_a_world_status_file_the_world_could_not_write_is_refused_before_it_starts(tmp_path):
+    """It wrote a traceback a few times a second instead (a subprocess: a world that starts runs
+    until it is stopped)."""
+    assert run_fleet(["render", str(FLEETS / "two_robots.yaml"), "-o", str(tmp_path / "out")]) == 0
+    config = tmp_path / "out" / "world" / "world.yaml"
+    (tmp_path / "file").write_text("")
+    for status_file, problem in [
+        (tmp_path, "the status file is a directory: give a file's name"),
+        (tmp_path / "file" / "w.json", "the status file's directory is a file, not a directory"),
+    ]:
+        args = ["world", "--config", str(config), "--status-file", str(status_file)]
+        done = subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and done.stderr == f"fleet: error: {status_file}: {problem}\n", done.stderr
+
+
 def test_output_directory_fleet_did_not_write_is_refused(tmp_path, capsys):
     spec = tmp_path / "fleet.yaml"
     spec.write_text("fleet: demo\nrobots: [{name: r1}]\n")
@@ -106,7 +173,10 @@ def test_run_names_the_problem_and_offers_ros2_launch_only_where_it_runs_the_fil
     no_ros2 = " (and `ros2` is not on PATH to run it with ros2 launch)"
     missing = tmp_path / "robot1.py"
     line = one_error_line(capsys, ["run", str(missing)])
-    assert line == f"fleet: error: {missing}: cannot read launch file: no such launch file"
+    assert line == f"fleet: error: {missing}: no such launch file"
+    # Said once, as read_input says it of every input file (it was "cannot read launch file: " twice).
+    line = one_error_line(capsys, ["run", str(tmp_path)])
+    assert line == f"fleet: error: {tmp_path}: cannot read launch file: Is a directory"
     bad = tmp_path / "bad.launch.yaml"
     bad.write_text("launch: [\n")
     line = one_error_line(capsys, ["run", str(bad)])
@@ -204,6 +274,10 @@ def test_output_into_a_closed_pipe_ends_quietly(tmp_path):
         (["status", "--connect", "tcp/10.0.0.1"], "has no port from 0 to 65535"),
         (["deploy", str(FLEETS / "two_robots.yaml"), "--connect", "tcp/[::1]:70000"], "has no port from 0 to 65535"),
         (["router", "--listen", "tcp/bad_host!:7447"], "'bad_host!' is not a host name or an IP address"),
+        (["status", "--connect", "tcp/::1:7447"], "an IPv6 address goes in brackets (tcp/[::1]:7447)"),
+        # Only an IPv6 address is told to go in brackets: other text with a colon is no host.
+        (["status", "--connect", "tcp/10.0.0.1:7447,tcp/10.0.0.2:7447"], "'10.0.0.1:7447,tcp/10.0.0.2' is not an IP"),
+        (["status", "--connect", "tcp/[::1:7447"], "'[::1' is not an IP address"),
     ],
 )
 def test_an_endpoint_that_is_not_an_address(capsys, args, expected):

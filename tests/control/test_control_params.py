@@ -96,6 +96,12 @@ def test_set_is_checked_by_the_node_recorded_and_kept_across_an_agent_restart(fr
         assert unknown.stderr == (
             "fleet: error: <command line>: node /robot1/controller has no parameter 'no_such_parameter'\n"
         ), unknown.stderr
+    # A long value reaches the node whole and is judged by it: one whose JSON passes the 128 KiB an
+    # argument may hold (a URDF full of quotes, here 60 kB of text that JSON escapes to 180 kB).
+    long_value = "\u00e9" * 30_000
+    judged = param(cluster, "set", "robot1", "controller", "max_speed", long_value)
+    assert judged.returncode == 2, judged.stdout + judged.stderr
+    assert "it holds a double, and the value given is a string" in judged.stderr, judged.stderr
     typo = param(cluster, "get", "robot1", "controller", "max_sped")
     assert typo.returncode == 2 and typo.stderr == (
         "fleet: error: <command line>: node /robot1/controller has no parameter 'max_sped' "

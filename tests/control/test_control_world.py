@@ -227,6 +227,11 @@ def test_snapshot_refuses_bad_input_and_draws_a_local_status_file(tmp_path):
     done = fleet_cli("snapshot", "--status-file", str(status_file), "-o", str(tmp_path / "w.png"))
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "w.png").read_bytes()[:8] == PNG_MAGIC
+    # A place the picture cannot be written: said in one line, not a traceback from the PNG writer.
+    folder = tmp_path / "folder.png"
+    folder.mkdir()
+    done = fleet_cli("snapshot", "--status-file", str(status_file), "-o", str(folder))
+    assert done.returncode == 2 and done.stderr == f"fleet: error: {folder}: cannot write the picture: Is a directory\n"
 
 
 # ---------------------------------------------------------------------------------------------

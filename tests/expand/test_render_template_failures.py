@@ -74,3 +74,22 @@ def test_arg_called_wrongly_is_named_as_the_template_knows_it(tmp_path, capsys):
     assert refusal(capsys, code) == (
         f"fleet: error: {template}:2: arg() missing 1 required positional argument: 'default'"
     )
+
+
+@pytest.mark.parametrize(
+    "files, place",
+    [
+        ({"t.launch.yaml.j2": b"launch:\n# caf\xe9\n"}, "t.launch.yaml.j2:2"),
+        ({"t.launch.yaml.j2": b"launch:\n{% include 'part.j2' %}\n", "part.j2": b"# one\n# caf\xe9\n"}, "part.j2:2"),
+    ],
+)
+def test_a_template_file_that_is_not_utf8_is_refused_at_its_line_as_any_input_file(tmp_path, capsys, files, place):
+    """The template, or a file it includes: named as fleet names any input it cannot read."""
+    code, template = render_template(tmp_path, NAMESPACE)
+    capsys.readouterr()
+    for name, content in files.items():
+        template.with_name(name).write_bytes(content)
+    code = run_fleet(["render", str(tmp_path / "fleet.yaml")])
+    assert refusal(capsys, code) == (
+        f"fleet: error: {template.parent / place}: cannot read template file: not UTF-8 text (byte 0xe9)"
+    )

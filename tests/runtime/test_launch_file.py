@@ -553,7 +553,7 @@ def test_non_yaml_launch_file_refused(demo, tmp_path):
 
 
 def test_missing_file(demo, tmp_path):
-    with pytest.raises(LaunchFileError, match="cannot read launch file"):
+    with pytest.raises(LaunchFileError, match="no such launch file"):
         check_launch_file(tmp_path / "nope.launch.yaml", env=demo.env())
 
 

@@ -101,6 +101,14 @@ def test_xml_refusals_are_located(write_launch, demo):
     assert refusal(broken, demo).startswith(f"fleet: error: {broken}:3:")
 
 
+def test_xml_nested_past_the_yaml_bound_is_refused_at_the_element(write_launch, demo):
+    """As a YAML launch file is (64 deep): reading 5,000 nested groups ended in a RecursionError."""
+    deep = write_launch("<launch>\n" + "<group>" * 5000 + "</group>" * 5000 + "\n</launch>\n", "deep.launch.xml")
+    assert refusal(deep, demo) == (
+        f"fleet: error: {deep}:2:442: more than 64 nested elements: too deep for a fleet input"
+    )
+
+
 def test_python_launch_file_points_to_ros2_launch(demo, tmp_path):
     path = tmp_path / "robot.launch.py"
     path.write_text("def generate_launch_description(): ...\n")
