@@ -151,19 +151,24 @@ def test_a_node_of_another_package_is_not_checked(tmp_path):
     assert run_fleet(["render", str(spec), "-o", str(tmp_path / "out"), "--set", "a.planner.max_speed=20.0"]) == 0
 
 
+def controller_given(tmp_path: Path, inline: str, parameters: str = "", with_file: bool = True) -> Path:
+    """The scout template, its controller given `inline` after the robot's parameter file (or
+    instead of it: `with_file` False)."""
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    given = "{from: {{ params_file }}}, " + inline if with_file else inline
+    (templates / "scout.launch.yaml.j2").write_text(SCOUT.replace("{from: {{ params_file }}}]", given + "]", 1))
+    return spec_file(
+        tmp_path,
+        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
+        f"robots:\n- {{name: a{parameters}}}\n",
+    )
+
+
 def test_a_value_the_launch_file_gives_inline_is_checked_there(tmp_path):
     """What the node gets is what is checked: a value given inline after the parameter file wins
     over the file's, so it is refused at its line of the rendered launch file."""
-    templates = tmp_path / "templates"
-    templates.mkdir()
-    (templates / "scout.launch.yaml.j2").write_text(
-        SCOUT.replace("{from: {{ params_file }}}]", "{from: {{ params_file }}}, {name: max_speed, value: 7.5}]", 1)
-    )
-    spec = spec_file(
-        tmp_path,
-        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
-        "robots:\n- {name: a}\n",
-    )
+    spec = controller_given(tmp_path, "{name: max_speed, value: 7.5}")
     with pytest.raises(SpecError) as refused:
         expand_fleet(parse_spec(spec.read_text(), str(spec)))
     assert str(refused.value).startswith("a/a.launch.yaml:4:")
@@ -289,20 +294,6 @@ def test_a_capacity_of_zero_is_refused(tmp_path, capsys):
     )
 
 
-def controller_given(tmp_path: Path, inline: str, parameters: str = "") -> Path:
-    """The scout template, its controller given `inline` after the robot's parameter file."""
-    templates = tmp_path / "templates"
-    templates.mkdir()
-    (templates / "scout.launch.yaml.j2").write_text(
-        SCOUT.replace("{from: {{ params_file }}}]", "{from: {{ params_file }}}, " + inline + "]", 1)
-    )
-    return spec_file(
-        tmp_path,
-        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
-        f"robots:\n- {{name: a{parameters}}}\n",
-    )
-
-
 def test_waypoints_the_launch_file_gives_inline_are_checked_there(tmp_path):
     spec = controller_given(tmp_path, "{name: waypoints, value: [1.0, 2.0, 3.0]}")
     with pytest.raises(SpecError) as refused:
@@ -341,16 +332,7 @@ def test_an_environment_variable_with_a_default_is_left_to_the_agent_and_explain
 
 
 def test_a_node_started_without_the_parameter_file_is_checked_by_what_it_is_given_inline(tmp_path, capsys):
-    templates = tmp_path / "templates"
-    templates.mkdir()
-    (templates / "scout.launch.yaml.j2").write_text(
-        SCOUT.replace("{from: {{ params_file }}}]", "{name: waypoints, value: [1.0]}]", 1)
-    )
-    spec = spec_file(
-        tmp_path,
-        "fleet: demo\nros: {use_sim_time: false}\ntemplates: templates\ndefaults: {template: scout}\n"
-        "robots:\n- {name: a}\n",
-    )
+    spec = controller_given(tmp_path, "{name: waypoints, value: [1.0]}", with_file=False)
     with pytest.raises(SpecError) as refused:
         expand_fleet(parse_spec(spec.read_text(), str(spec)))
     assert str(refused.value).startswith("a/a.launch.yaml:4:")
