@@ -9,8 +9,9 @@ characters, so a hostile spec can neither forge a second error line nor drive th
 
 from __future__ import annotations
 
+import difflib
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,13 @@ MAX_LINE = 300  # characters of a whole error line, prefix included
 COMMAND_LINE = "<command line>"  # the place of an error in the command's own arguments
 _LONG_WORD = re.compile(r"\S{41,}")
 _ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def did_you_mean(name: str, names: Iterable[str]) -> str:
+    """The hint an error about a name that is not there gives: ` (did you mean 'closest'?)`, or
+    "" when no name is close."""
+    guess = difflib.get_close_matches(name, sorted(names), n=1)
+    return f" (did you mean {guess[0]!r}?)" if guess else ""
 
 
 def printable(text: str) -> str:

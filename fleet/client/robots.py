@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import difflib
 import time
 
 from fleet.client.control_client import ControlClient
-from fleet.errors import BadRequest, ControlError, FleetError
+from fleet.errors import BadRequest, ControlError, FleetError, did_you_mean
 from fleet.plan.view import FleetView, build_view, known_fleets
 from fleet.wire import protocol as p
 
@@ -61,8 +60,7 @@ def _robots_hint(view: FleetView, robot: str, fleet: str | None) -> str:
     names = sorted({row.name for row in view.robots if fleet is None or row.fleet == fleet})
     if len(names) <= LISTED_ROBOTS:
         return f" (robots: {', '.join(names)})" if names else ""
-    guess = difflib.get_close_matches(robot, names, n=1)
-    return f" (did you mean {guess[0]!r}?)" if guess else ""
+    return did_you_mean(robot, names)
 
 
 def tool_environment(view: FleetView, fleet: str | None, agent: str | None) -> dict[str, str]:

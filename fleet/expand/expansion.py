@@ -6,14 +6,13 @@ failed `fleet render` or `fleet deploy` leaves nothing half-written or half-depl
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fleet.errors import Location, SpecError, TemplateError, relative_to_cwd
+from fleet.errors import Location, SpecError, TemplateError, did_you_mean, relative_to_cwd
 from fleet.expand import yaml_emit
 from fleet.expand.bundle import Bundle
 from fleet.expand.outline import LaunchOutline, NodeOutline, outline
@@ -471,11 +470,9 @@ def _shared_layers(
     for node, values in defaults.items():
         assert defaults_source is not None  # there are defaults only when read from a file
         if node not in node_names and node not in layers.hosted:
-            guess = difflib.get_close_matches(node, sorted(node_names), n=1)
             raise TemplateError(
                 f"defaults for node {node!r}, which template {template!r} does not start"
-                + (f" (did you mean {guess[0]!r}?)" if guess else "")
-                + f" (nodes: {', '.join(sorted(node_names))})",
+                f"{did_you_mean(node, node_names)} (nodes: {', '.join(sorted(node_names))})",
                 defaults_source.locate((node,), key=True),
             )
         layers.add(node, values, "template", _file_place(defaults_source, node))

@@ -8,13 +8,12 @@ rcl (in Jazzy the last matching key applied wins, not the most specific).
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
-from fleet.errors import Location, SpecError
+from fleet.errors import Location, SpecError, did_you_mean
 from fleet.rules import node_key_problem, parameter_token_problem
 from fleet.spec.params import coerce_like, command_line_value, flatten, namespace_clash
 from fleet.spec.yaml_source import DocPath
@@ -138,8 +137,7 @@ class ParameterLayers:
         for (node, name), settings in self.of_nodes(nodes):
             declared = self.template_names.get(node)
             if declared and name not in declared:
-                hint = difflib.get_close_matches(name, sorted(declared), n=1)
-                guess = f" (did you mean {hint[0]!r}?)" if hint else ""
+                guess = did_you_mean(name, declared)
                 warnings[(node, name)] = (
                     f"{settings[-1].source}: {node}.{name} is not a parameter of the template's {node} defaults{guess}"
                 )

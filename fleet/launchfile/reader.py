@@ -10,13 +10,12 @@ a YAML string (`respawn: 'true'`, not `true`); a file accepted here also runs un
 from __future__ import annotations
 
 import contextlib
-import difflib
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from fleet.errors import LaunchFileError, Location, NeedsRos2Launch, SpecError
+from fleet.errors import LaunchFileError, Location, NeedsRos2Launch, SpecError, did_you_mean
 from fleet.launchfile import description as d
 from fleet.launchfile.entities import XML, YAML, Entity, xml_actions, yaml_actions, yaml_document_actions
 from fleet.launchfile.substitutions import Ros2OnlySubstitution, SubstitutionSyntax, Text, literal, parse_substitutions
@@ -217,8 +216,7 @@ def _action(entity: Entity) -> d.Action:
     if kind in ROS2_ACTIONS:
         raise NeedsRos2Launch(f"action '{kind}' {_NEEDS_ROS2}", entity.where)
     if kind not in ATTRIBUTES:
-        guess = difflib.get_close_matches(kind, [*ATTRIBUTES, *ROS2_ACTIONS], n=1)
-        hint = f" (did you mean '{guess[0]}'?)" if guess else ""
+        hint = did_you_mean(kind, [*ATTRIBUTES, *ROS2_ACTIONS])
         raise LaunchFileError(f"unknown action '{kind}'{hint}", entity.where)
     body_is_list = entity.frontend == YAML and isinstance(getattr(entity, "body", None), list)
     if not body_is_list and entity.frontend == YAML and not isinstance(getattr(entity, "body", None), dict):

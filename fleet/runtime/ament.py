@@ -9,14 +9,13 @@ and one small Python script per executable that imports `fleet.nodes.<exe>` and 
 
 from __future__ import annotations
 
-import difflib
 import os
 import re
 import sys
 from collections.abc import Mapping
 from pathlib import Path
 
-from fleet.errors import LaunchFileError
+from fleet.errors import LaunchFileError, did_you_mean
 from fleet.files import write_atomic
 
 PACKAGE = "fleet_nodes"
@@ -120,7 +119,7 @@ def find_package_prefix(package: str, search_path: str) -> Path:
     searched = ", ".join(prefixes) or "(AMENT_PREFIX_PATH is empty)"
     indexed = {path.name for entry in prefixes for path in _listing(Path(entry) / INDEX_DIR)}
     raise LaunchFileError(
-        f"package '{package}' not found in the ament index{_did_you_mean(package, indexed)} (searched: {searched})"
+        f"package '{package}' not found in the ament index{did_you_mean(package, indexed)} (searched: {searched})"
     )
 
 
@@ -129,11 +128,6 @@ def _listing(directory: Path) -> list[Path]:
         return list(directory.iterdir())
     except OSError:
         return []
-
-
-def _did_you_mean(name: str, names: set[str]) -> str:
-    guess = difflib.get_close_matches(name, sorted(names), n=1)
-    return f" (did you mean '{guess[0]}'?)" if guess else ""
 
 
 _NOT_FOUND = re.compile(r"package '([^']+)' not found in the ament index")
@@ -169,6 +163,6 @@ def find_executable(package: str, executable: str, search_path: str) -> Path:
     has = {path.name for path in _listing(candidate.parent) if path.is_file() and os.access(path, os.X_OK)}
     listed = ", ".join(sorted(has)) or "no executable"
     raise LaunchFileError(
-        f"executable '{executable}' of package '{package}' not found{_did_you_mean(executable, has)}: "
+        f"executable '{executable}' of package '{package}' not found{did_you_mean(executable, has)}: "
         f"{candidate.parent} holds {listed}"
     )

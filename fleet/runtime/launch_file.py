@@ -13,7 +13,6 @@ files (launch_ros does the same) and the command lines assembled.
 
 from __future__ import annotations
 
-import difflib
 import os
 import re
 import tempfile
@@ -24,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch
+from fleet.errors import FleetError, LaunchFileError, Location, NeedsRos2Launch, did_you_mean
 from fleet.launchfile import description as d
 from fleet.launchfile import read_launch_file
 from fleet.launchfile.substitutions import Subst, Text, parse_substitutions, split_command_line
@@ -242,9 +241,8 @@ class _Interpreter:
             if args[0] not in scope.configurations or not isinstance(scope.configurations[args[0]], str):
                 if self.unknown_configurations:
                     return _UNKNOWN
-                defined = sorted(name for name, value in scope.configurations.items() if isinstance(value, str))
-                guess = difflib.get_close_matches(args[0], defined, n=1)
-                hint = f" (did you mean '{guess[0]}'?)" if guess else ""
+                defined = (name for name, value in scope.configurations.items() if isinstance(value, str))
+                hint = did_you_mean(args[0], defined)
                 raise LaunchFileError(f"launch configuration '{args[0]}' is not defined{hint}", where)
             return scope.configurations[args[0]]
         if kind == "env":

@@ -173,16 +173,15 @@ def _list(node, fqns: list[str]) -> None:
 def _closest(node, fqn: str, name: str) -> str:
     """` (did you mean 'x'?)` from the node's own parameter names, or nothing (asked only after a
     miss, so a get or set that finds its parameter costs no extra call)."""
-    import difflib
-
     from rcl_interfaces.srv import ListParameters
+
+    from fleet.errors import did_you_mean
 
     try:
         listed = _call(node, ListParameters, f"{fqn}/list_parameters", ListParameters.Request())
     except TimeoutError:
         return ""
-    guess = difflib.get_close_matches(name, list(listed.result.names), n=1)
-    return f" (did you mean {guess[0]!r}?)" if guess else ""
+    return did_you_mean(name, listed.result.names)
 
 
 def main(argv: list[str]) -> int:

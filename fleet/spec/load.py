@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 import types
 import typing
 from pathlib import Path
@@ -10,7 +9,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from fleet.errors import Location, SpecError, validation_message
+from fleet.errors import Location, SpecError, did_you_mean, validation_message
 from fleet.rules import (
     RESERVED_UNIT_NAMES,
     WORLD_TEMPLATE,
@@ -217,9 +216,8 @@ def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> Spec
     if kind == "extra_forbidden":
         unknown = loc[-1]
         allowed = _fields_at(loc[:-1])
-        hint = difflib.get_close_matches(str(unknown), allowed, n=1)
         message = f"unknown key {unknown!r}" + (f" in {_parent(loc)}" if loc[:-1] else "")
-        message += f" (did you mean {hint[0]!r}?)" if hint else f" (allowed: {', '.join(allowed)})"
+        message += did_you_mean(str(unknown), allowed) or f" (allowed: {', '.join(allowed)})"
         return SpecError(message, source.locate(loc, key=True))
     if kind in ("tuple_type", "too_long") or (kind == "missing" and isinstance(problem["loc"][-1], int)):
         # A tuple of the schema (position, size), written as a YAML list: pydantic reports a short
