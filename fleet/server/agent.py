@@ -38,14 +38,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from fleet import __version__
+from fleet.errors import SpecError
 from fleet.files import write_atomic
-from fleet.rules import hosts_dir, services_dir
+from fleet.rules import PARAMS_SUFFIX, hosts_dir, services_dir
 from fleet.runtime.node_log import logger_name
 from fleet.runtime.processes import ServiceProcess, stop_all
 from fleet.server.logs import robot_logs
 from fleet.server.reconcile import plan_changes
 from fleet.server.state import AgentStore, FleetState
 from fleet.server.units import UNIT_MARKER, Unit
+from fleet.spec.load import check_parameter_file
 from fleet.spec.model import DEFAULT_GROUP_SIZE
 from fleet.wire import protocol as p
 from fleet.wire.session import AGENT_LEASE_MS, open_client_retrying
@@ -317,6 +319,16 @@ class Agent:
         for bundle in request.bundles:
             if not bundle.digest_matches():
                 raise p.ProtocolError(f"bundle {bundle.name!r}: its digest is not that of its files", "invalid")
+            for name, text in bundle.files.items():
+                if name.endswith(PARAMS_SUFFIX):
+                    # A parameter file's nodes would read it at start, and crash-loop on one rcl
+                    # cannot read: refused before it replaces anything running.
+                    try:
+                        check_parameter_file(text, f"{bundle.name}/{name}")
+                    except SpecError as error:
+                        raise p.ProtocolError(
+                            f"bundle {bundle.name!r}: {error.location}: {error.message}", "invalid"
+                        ) from None
         return request
 
     def _fetch_desired(self, session) -> bool:

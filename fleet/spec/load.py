@@ -12,6 +12,7 @@ from pydantic import BaseModel, ValidationError
 from fleet.errors import Location, SpecError, did_you_mean, validation_message
 from fleet.rules import (
     RESERVED_UNIT_NAMES,
+    ROS_PARAMETERS_KEY,
     WORLD_TEMPLATE,
     key_name_problem,
     namespace_problem,
@@ -173,36 +174,88 @@ def check_parameters(parameters: dict[str, dict[str, Any]], path: DocPath, sourc
     for node, values in parameters.items():
         if problem := node_key_problem(node):
             raise SpecError(f"node name {problem}", source.locate((*path, node), key=True))
-        try:
-            flat = flatten(values)
-        except ParameterNameClash as clash:
+        check_node_parameters(node, values, (*path, node), source)
+
+
+def check_node_parameters(node: str, values: dict[str, Any], path: DocPath, source: SourceMap) -> None:
+    """Every (nested) parameter name of one node, whose parameters are at `path`, is a ROS name,
+    named once; every value is one ROS can hold."""
+    try:
+        flat = flatten(values)
+    except ParameterNameClash as clash:
+        raise SpecError(
+            f"parameter {node}.{clash.name} is written twice (as a dotted key and nested)",
+            source.locate((*path, *clash.key_path), key=True),
+        ) from None
+    for name, (key_path, value) in flat.items():
+        for key in key_path:
+            if not isinstance(key, str):
+                raise SpecError(
+                    f"parameter name {key!r} in {node} must be text, not {type(key).__name__}",
+                    source.locate((*path, *key_path), key=True),
+                )
+        for token in name.split("."):
+            if problem := parameter_token_problem(token):
+                # at the key that holds the token (`ros__parameters:` above the parameters)
+                depth = next(i for i, key in enumerate(key_path, 1) if token in key.split("."))
+                raise SpecError(
+                    f"parameter name {node}.{name}: {problem}",
+                    source.locate((*path, *key_path[:depth]), key=True),
+                )
+        if problem := value_problem(value):
+            raise SpecError(f"parameter {node}.{name}: {problem}", source.locate((*path, *key_path)))
+    if overlap := namespace_clash(flat):
+        raise SpecError(
+            f"{node}.{overlap[0]} is both a parameter and the namespace of {node}.{overlap[1]}: ROS cannot hold both",
+            source.locate((*path, *flat[overlap[1]][0]), key=True),
+        )
+
+
+# rcl reads a node's name from the keys above its `ros__parameters`: `/robot1/controller:`, or
+# one key per namespace level (`robot1: {controller: ...}`); a file fleet did not write may nest.
+_MAX_NAME_LEVELS = 8
+_PARAMETER_FILE_PATHS: tuple[PathPattern, ...] = tuple(
+    (*[None] * levels, ROS_PARAMETERS_KEY) for levels in range(1, _MAX_NAME_LEVELS + 1)
+)
+
+
+def check_parameter_file(text: str, file: str) -> None:
+    """A ROS parameter file as rcl reads it (`/robot1/controller: {ros__parameters: {...}}`):
+    SpecError, located, for what would stop a node that reads it at start."""
+    data, source = load_yaml(text, file, _PARAMETER_FILE_PATHS)
+    if data is None:
+        return
+    if not isinstance(data, dict):
+        raise SpecError("a parameter file maps node names to their parameters", Location(file, 1))
+    _check_name_level(data, (), source)
+
+
+def _check_name_level(level: dict[Any, Any], path: DocPath, source: SourceMap) -> None:
+    """One level of node names of a parameter file: each key a name, below it the node's
+    `ros__parameters` or the next level of its name."""
+    for key, below in level.items():
+        here = (*path, key)
+        if not isinstance(key, str) or not key:
+            raise SpecError(f"node name {key!r} is not a name", source.locate(here, key=True))
+        node = "/".join(str(part) for part in here)
+        if not isinstance(below, dict) or not below:
             raise SpecError(
-                f"parameter {node}.{clash.name} is written twice (as a dotted key and nested)",
-                source.locate((*path, node, *clash.key_path), key=True),
-            ) from None
-        for name, (key_path, value) in flat.items():
-            for key in key_path:
-                if not isinstance(key, str):
-                    raise SpecError(
-                        f"parameter name {key!r} in {node} must be text, not {type(key).__name__}",
-                        source.locate((*path, node, *key_path), key=True),
-                    )
-            for token in name.split("."):
-                if problem := parameter_token_problem(token):
-                    # at the key that holds the token (`ros__parameters:` above the parameters)
-                    depth = next(i for i, key in enumerate(key_path, 1) if token in key.split("."))
-                    raise SpecError(
-                        f"parameter name {node}.{name}: {problem}",
-                        source.locate((*path, node, *key_path[:depth]), key=True),
-                    )
-            if problem := value_problem(value):
-                raise SpecError(f"parameter {node}.{name}: {problem}", source.locate((*path, node, *key_path)))
-        if overlap := namespace_clash(flat):
-            raise SpecError(
-                f"{node}.{overlap[0]} is both a parameter and the namespace of {node}.{overlap[1]}: "
-                "ROS cannot hold both",
-                source.locate((*path, node, *flat[overlap[1]][0]), key=True),
+                f"{node}: expected the node's {{{ROS_PARAMETERS_KEY}: {{...}}}}", source.locate(here, key=True)
             )
+        for name, value in below.items():
+            if name != ROS_PARAMETERS_KEY:
+                if len(here) >= _MAX_NAME_LEVELS:
+                    raise SpecError(
+                        f"{node}: no {ROS_PARAMETERS_KEY} within {_MAX_NAME_LEVELS} levels",
+                        source.locate(here, key=True),
+                    )
+                _check_name_level({name: value}, here, source)
+            elif isinstance(value, dict):
+                check_node_parameters(node, value, (*here, name), source)
+            else:
+                raise SpecError(
+                    f"{node}: {ROS_PARAMETERS_KEY} must map parameter names to values", source.locate((*here, name))
+                )
 
 
 def _first_problem(error: ValidationError, source: SourceMap, data: Any) -> SpecError:

@@ -19,10 +19,11 @@ import pytest
 from fleet.client import Outcome
 from fleet.expand import expand_fleet
 from fleet.plan import new_generation, requests_for
-from fleet.rules import MAX_DOMAIN_ID
+from fleet.rules import MAX_DOMAIN_ID, PARAMS_SUFFIX
 from fleet.spec import load_spec
 from fleet.testing.poll import poll
 from fleet.wire import protocol as p
+from fleet.wire.digests import cold_json, digest_of
 from tests.control.control_helpers import DATA, robot, wait_processes_gone
 
 pytestmark = pytest.mark.integration
@@ -204,6 +205,20 @@ def _bad_payloads(cluster) -> dict[str, bytes | None]:
         lambda _, robot: robot["options"].update(isolation="agent", group_size="0")
     )
     payloads["a file named as the unit's logs"] = spoilt(lambda _, robot: robot["files"].update(logs="x"))
+    # Its nodes would crash-loop on a parameter file rcl cannot read: refused, digest and all right.
+    params = f"{good['bundles'][0]['name']}{PARAMS_SUFFIX}"
+
+    def with_parameter_file(text: str):
+        def change(_, robot) -> None:
+            robot["files"][params] = text
+            robot["digest"] = digest_of(cold_json(robot["entry"], robot["options"], robot["files"], robot["hot_files"]))
+
+        return change
+
+    payloads["a parameter file that is not YAML"] = spoilt(with_parameter_file("a: [1,"))
+    payloads["a parameter file without ros__parameters"] = spoilt(
+        with_parameter_file("/robot1/sleeper:\n  period: 2.0\n")
+    )
     return payloads
 
 
@@ -234,6 +249,8 @@ def test_bad_messages_get_error_replies_and_leave_the_agent_intact(cluster):
             assert replies[0].err is not None, label
             error = json.loads(replies[0].err.payload.to_bytes())
             assert error["kind"] == "error" and error["error"], label
+            if label.startswith("a parameter file"):  # placed in the file, at its line
+                assert re.search(rf"{PARAMS_SUFFIX}:\d+", error["error"]), error
     after = [(r.name, r.pids, r.generation, r.state) for r in cluster.view("tiny").robots]
     assert after == before
     assert not list(cluster.root.rglob("evil.sh"))
