@@ -21,7 +21,7 @@ class Bundle:
     agent: str
     entry: str  # the launch file to run, e.g. "robot1.launch.yaml"
     files: Mapping[str, str]  # flat file name -> text
-    options: Mapping[str, str] = field(default_factory=dict)  # e.g. {"isolation": "process"}
+    options: Mapping[str, str | bool] = field(default_factory=dict)  # e.g. {"isolation": "process"}
     hot_files: frozenset[str] = frozenset()  # applied in place on change, without a restart
 
     def __post_init__(self) -> None:

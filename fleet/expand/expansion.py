@@ -67,6 +67,7 @@ class RobotPlan:
     isolation: str
     model: Model
     pose: dict[str, float]
+    simulated: bool  # as the spec says: a robot of a fleet without a world is not hosted anywhere
     outline: LaunchOutline
     parameters: ParameterLayers
     launch_args: dict[str, str]
@@ -294,24 +295,30 @@ def _misnamed_defaults(templates: TemplateSet, robots: list[RobotPlan]) -> list[
 
 
 def _sim_time_without_world(spec: FleetSpec, robots: list[RobotPlan]) -> list[str]:
-    """A warning when robots follow /clock and the fleet has no world to publish it: their nodes'
-    time then stands still at 0 (timers never fire) until something else publishes /clock, a
-    simulator of the user's own, say. Real robots want `use_sim_time: false`."""
-    if spec.world is not None:
-        return []
+    """A warning when robots follow /clock that no world of theirs publishes: in a fleet without
+    a world their nodes' time stands still at 0 (timers never fire) until something else publishes
+    /clock, a simulator of the user's own, say; a real robot (`simulated: false`) of a fleet with
+    a world would run on the simulation's time.  Real robots want `use_sim_time: false`."""
+    unhosted = [plan for plan in robots if spec.world is None or not plan.simulated]
     on_sim_time = [
         plan.name
-        for plan in robots
+        for plan in unhosted
         if plan.launch_args.get("use_sim_time", str(spec.ros.use_sim_time)).lower() != "false"
     ]
     if not on_sim_time:
         return []
     shown = ", ".join(on_sim_time[:3]) + (f" and {len(on_sim_time) - 3} more" if len(on_sim_time) > 3 else "")
     default = "" if "use_sim_time" in spec.ros.model_fields_set else ", the default"
+    where = _spec_location(spec, ("ros", "use_sim_time"))
+    if spec.world is None:
+        return [
+            f"{where}: robots {shown} run on sim time (use_sim_time true{default}) "
+            "but the fleet has no world to publish /clock: their nodes' time stands still until something else "
+            "does; set `ros: {use_sim_time: false}` for real robots, or add a `world`"
+        ]
     return [
-        f"{_spec_location(spec, ('ros', 'use_sim_time'))}: robots {shown} run on sim time (use_sim_time true{default}) "
-        "but the fleet has no world to publish /clock: their nodes' time stands still until something else "
-        "does; set `ros: {use_sim_time: false}` for real robots, or add a `world`"
+        f"{where}: robots {shown} are real (simulated: false) but run on the world's sim time "
+        f"(use_sim_time true{default}): give each `launch_args: {{use_sim_time: false}}`"
     ]
 
 
@@ -445,6 +452,7 @@ def _plan_robot(
         isolation=robot.isolation or spec.defaults.isolation,
         model=model,
         pose=pose,
+        simulated=robot.simulated,
         outline=shape,
         parameters=layers,
         launch_args={k: str(v) for k, v in arguments.items()},
@@ -591,7 +599,8 @@ def _robot_bundle(spec: FleetSpec, plan: RobotPlan, sections: dict[DocPath, str]
         agent=plan.agent,
         entry=f"{plan.name}{LAUNCH_SUFFIX}",
         files=files,
-        options=isolation_options(spec, plan.isolation),
+        # The agent reports it with the robot's state: the world does not judge a real robot.
+        options={**isolation_options(spec, plan.isolation), **({} if plan.simulated else {"simulated": False})},
     )
 
 

@@ -59,6 +59,7 @@ class RobotRow:
     error: str = ""
     reason: str = ""  # why the state is not `running`, in words
     nodes: list[dict[str, Any]] = field(default_factory=list)  # name, fqn, state, pid, restarts, ...
+    simulated: bool = True  # False: a real robot (`simulated: false`), whose data the world does not carry
 
     @property
     def pids(self) -> set[int]:
@@ -245,6 +246,7 @@ def build_view(statuses: list[p.StatusReply], registries: list[p.RegistryReply],
                 error=robot.error,
                 reason=robot.reason,
                 nodes=[node.model_dump() for node in robot.nodes],
+                simulated=robot.simulated,
             )
 
     for registry in registries:
@@ -366,7 +368,7 @@ def judge_data_flow(rows: list[RobotRow], world: RobotRow | None, summary: p.Wor
         world_problem = f"no /clock from the world for {summary.age:.0f} s (world not advancing)"
         world.state, world.reason = "degraded", f"not advancing: no report for {summary.age:.0f} s (frozen or stuck?)"
     for row in rows:
-        if row.kind != "robot" or row.state != "running":
+        if row.kind != "robot" or row.state != "running" or not row.simulated:  # a real robot: the graph judges it
             continue
         problem = world_problem
         if problem is None and summary is not None:  # without a summary there is a world problem

@@ -838,6 +838,7 @@ class Agent:
                         deployed_generation=state.deployed.get(bundle.name, 0),
                         digest=bundle.digest,
                         hot_digest=bundle.hot_digest,
+                        simulated=bundle.simulated,
                     )
                 )
         return reply

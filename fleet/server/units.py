@@ -196,6 +196,7 @@ class Unit:
             overrides=overrides,
             error=self.error,
             restarted=self.restarted,
+            simulated=self.bundle.simulated,
         )
 
     def world_file(self) -> dict[str, Any] | None:

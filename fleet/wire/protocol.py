@@ -288,6 +288,11 @@ class BundleMessage(BaseModel):
     def hot_digest(self) -> str:
         return hot_digest(self.files, self.hot_files)
 
+    @property
+    def simulated(self) -> bool:
+        """False for a real robot (`simulated: false` in the spec), whose data the world does not carry."""
+        return self.options.get("simulated") is not False
+
     def digest_matches(self) -> bool:
         """Whether `digest` is that of its files, entry and options: an agent decides what to
         restart by digests alone, so one that says less than its files would hide a change."""
@@ -454,6 +459,7 @@ class RobotState(BaseModel):
     error: str = ""
     # How many `fleet restart`s of it its agent has carried out (RestartReply.restart)
     restarted: int = 0
+    simulated: bool = True  # False: a real robot, whose data the world does not carry
 
 
 class AgentInfo(BaseModel):

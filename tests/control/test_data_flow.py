@@ -420,3 +420,14 @@ def test_a_robot_moving_between_agents_is_shown_on_the_agent_the_plan_puts_it_on
     plan = p.PlanRecord(fleet="f", generation=2, robots={"r3": "hostA"}, deployed_at=0.0)
     view = build_view(replies, [p.RegistryReply(fleet="f", plan=plan)], now=100.0)
     assert [(row.name, row.agent) for row in view.robots] == [("r3", "hostA")]
+
+
+def test_a_real_robot_in_a_fleet_with_a_world_is_judged_without_the_world():
+    """`simulated: false`: the world neither hosts it nor hears it, so its nodes running (and in
+    the graph) are all there is to judge; a silent world degrades only the simulated robots."""
+    real = unit("r2").model_copy(update={"simulated": False})
+    got = rows(status("sim", [unit("world")], world(r1=FLOWING)), status("rack", [unit("r1"), real]))
+    assert got == {"world": ("running", ""), "r1": ("running", ""), "r2": ("running", "")}
+    silent = world(age=WORLD_SILENT + 9, r1=FLOWING)
+    got = rows(status("sim", [unit("world")], silent), status("rack", [unit("r1"), real]))
+    assert got["r1"][0] == "degraded" and got["r2"] == ("running", "")

@@ -71,12 +71,12 @@ def wait_driving(fleet, robots, sim_timeout: float = 15.0, distance: float = 0.1
 
 
 def wait_every_robot_left_its_spawn(fleet, distance: float = 0.2, sim_timeout: float = 30.0) -> None:
-    """Wait until every robot of the spec has been `distance` away from where the spec spawns it.
+    """Wait until every simulated robot of the spec has been `distance` away from where the spec spawns it.
 
     From the spawn, and once is enough: under load a robot may have driven its course before the
     fleet is up (safety_stop's scout stops at its crate 1.4 m out), and a looping one passes its
     spawn point again."""
-    spawns = {robot.name: (robot.pose.x, robot.pose.y) for robot in fleet.spec.robots}
+    spawns = {robot.name: (robot.pose.x, robot.pose.y) for robot in fleet.spec.robots if robot.simulated}
     moved: set[str] = set()
 
     def still() -> list[str]:

@@ -653,3 +653,10 @@ def test_robots_on_sim_time_without_a_world_are_warned_about(tmp_path):
     assert warnings("fleet: t\nros: {use_sim_time: false}\n" + robots) == []
     assert warnings("fleet: t\ndefaults: {launch_args: {use_sim_time: false}}\n" + robots) == []
     assert warnings("fleet: t\nworld: {}\nrobots:\n- {name: a}\n- {name: b, pose: {x: 2.0}}\n") == []
+    # A real robot of a fleet with a world would run on the simulation's clock.
+    mixed = "fleet: t\nworld: {}\nrobots:\n- {name: a}\n- {name: b, simulated: false}\n"
+    assert warnings(mixed) == [
+        f"{spec}:1:1: robots b are real (simulated: false) but run on the world's sim time "
+        "(use_sim_time true, the default): give each `launch_args: {use_sim_time: false}`"
+    ]
+    assert warnings(mixed.replace("simulated: false", "simulated: false, launch_args: {use_sim_time: false}")) == []

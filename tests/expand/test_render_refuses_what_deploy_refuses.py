@@ -83,6 +83,11 @@ def test_robots_that_are_not_simulated_are_not_placed():
     text = spec_text(["{name: a}", "{name: b, simulated: false}"])
     expansion = expand_fleet(parse_spec(text, "f.yaml"))
     assert [bundle.name for bundle in expansion.bundles] == ["a", "b", "world"]
+    # The agent reports which robot is real: fleet status does not judge it by the world.
+    options = {bundle.name: dict(bundle.options) for bundle in expansion.bundles}
+    assert options["b"]["simulated"] is False and "simulated" not in options["a"]
+    assert protocol.BundleMessage.from_bundle(expansion.bundles[1]).simulated is False
+    assert protocol.BundleMessage.from_bundle(expansion.bundles[0]).simulated is True
 
 
 def test_a_world_description_an_agent_would_refuse_is_refused():
