@@ -4,6 +4,7 @@ runs flat stops its robot, and a robot added by redeploying joins without distur
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -122,6 +123,105 @@ def test_each_robot_has_its_own_topics(fleet):
     # (the world writes its status every 0.25 s: allow for what a robot drives meanwhile)
     assert fleet.pose("robot1").distance_to((p1.x, p1.y)) < 0.4
     assert fleet.pose("robot2").distance_to((4.0 - p2.y, p2.x)) < 0.4
+
+
+def _stamp(message) -> float:
+    return message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
+
+
+def _yaw(orientation) -> float:
+    return 2 * math.atan2(orientation.z, orientation.w)
+
+
+def _compose(parent: tuple[float, float, float], child: tuple[float, float, float]) -> tuple[float, float, float]:
+    """A pose given in a frame whose own pose is `parent`, in the parent's frame (planar)."""
+    px, py, pyaw = parent
+    x, y, yaw = child
+    c, s = math.cos(pyaw), math.sin(pyaw)
+    return px + c * x - s * y, py + s * x + c * y, pyaw + yaw
+
+
+def _distance_to_box(point: tuple[float, float], obstacle: dict) -> float:
+    (cx, cy), yaw, (length, width, _) = obstacle["position"], obstacle["yaw"], obstacle["size"]
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = point[0] - cx, point[1] - cy
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    return math.hypot(max(abs(lx) - length / 2, 0.0), max(abs(ly) - width / 2, 0.0))
+
+
+def test_odometry_and_scans_agree_with_ground_truth_through_the_robots_frames(fleet):
+    """The frames a TF tree of the robot would hold (docs/architecture.md): `world` -> odom is the
+    spawn pose, odom -> base_link the odometry's pose, base_link -> base_scan identity.  Chained,
+    they put the odometry on the ground truth and each beam's return on an obstacle's surface."""
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import LaserScan
+
+    robot = "robot2"  # spawned at (4, 0) facing +y: its odom frame is turned against the world's
+    spawn = fleet.spec.robot(robot).pose
+    world_to_odom = (spawn.x, spawn.y, spawn.yaw)
+    odom = fleet.subscribe(robot, "odom", Odometry, keep=200)
+    truth = fleet.subscribe(robot, "ground_truth", PoseStamped, keep=200)
+    scans = fleet.subscribe(robot, "scan", LaserScan, keep=20)
+    other = fleet.subscribe("robot1", "ground_truth", PoseStamped, keep=200)
+    fleet.wait_for(lambda: scans.count >= 5 and other.count >= 50, sim_timeout=10, what="scans and ground truth")
+
+    # Odometry and ground truth of one step carry the same stamp: chained with the spawn pose,
+    # the odometry is the ground truth.
+    by_stamp = {_stamp(m): m for m in truth.messages}
+    pairs = [(m, by_stamp[_stamp(m)]) for m in odom.messages if _stamp(m) in by_stamp]
+    assert len(pairs) >= 10, (len(pairs), odom.count, truth.count)
+    for message, true in pairs:
+        pose = message.pose.pose
+        x, y, yaw = _compose(world_to_odom, (pose.position.x, pose.position.y, _yaw(pose.orientation)))
+        assert math.hypot(x - true.pose.position.x, y - true.pose.position.y) < 1e-6
+        assert abs(math.remainder(yaw - _yaw(true.pose.orientation), 2 * math.pi)) < 1e-6
+
+    # Each finite return, from base_scan through the odometry at the scan's stamp (interpolated
+    # between the two odometry messages around it, as tf2 does), lies on a wall, the crate or robot1.
+    def pose_at(messages, when: float, pose_of) -> tuple[float, float, float] | None:
+        ordered = sorted(messages, key=_stamp)
+        for before, after in itertools.pairwise(ordered):
+            t0, t1 = _stamp(before), _stamp(after)
+            if t0 <= when <= t1:
+                (x0, y0, a0), (x1, y1, a1) = pose_of(before), pose_of(after)
+                k = (when - t0) / (t1 - t0) if t1 > t0 else 0.0
+                return x0 + k * (x1 - x0), y0 + k * (y1 - y0), a0 + k * math.remainder(a1 - a0, 2 * math.pi)
+        return None
+
+    def odom_pose(m):
+        return m.pose.pose.position.x, m.pose.pose.position.y, _yaw(m.pose.pose.orientation)
+
+    def truth_pose(m):
+        return m.pose.position.x, m.pose.position.y, _yaw(m.pose.orientation)
+
+    boxes = fleet.world()["obstacles"]
+    checked = 0
+    for scan in list(scans.messages):
+        assert scan.header.frame_id == f"{robot}/base_scan"
+        in_odom = pose_at(odom.messages, _stamp(scan), odom_pose)
+        robot1 = pose_at(other.messages, _stamp(scan), truth_pose)
+        if in_odom is None or robot1 is None:
+            continue
+        base_scan = _compose(_compose(world_to_odom, in_odom), (0.0, 0.0, 0.0))
+        for i, r in enumerate(scan.ranges):
+            if not math.isfinite(r):
+                continue
+            x, y, _ = _compose(
+                base_scan,
+                (
+                    r * math.cos(scan.angle_min + i * scan.angle_increment),
+                    r * math.sin(scan.angle_min + i * scan.angle_increment),
+                    0.0,
+                ),
+            )
+            nearest = min(
+                [_distance_to_box((x, y), box) for box in boxes]
+                + [abs(math.hypot(x - robot1[0], y - robot1[1]) - 0.2)]  # robot1: a light robot of radius 0.2
+            )
+            assert nearest < 0.01, (scan.header.stamp, i, r, (x, y), nearest)
+            checked += 1
+    assert checked >= 100, checked
 
 
 def test_robot2_drives_at_its_overridden_max_speed(fleet):
