@@ -838,7 +838,10 @@ def _bridge_routes(spec: FleetSpec, bundles: list[Bundle], robots: list[RobotPla
         for robot in robots
         for topic in robot.shared
     ]
-    return bridge_routes(world_agent, [(robot.name, robot.namespace, robot.agent) for robot in robots], shared)
+    # The world's topics cross only for robots it hosts: a real robot's odom comes from its own
+    # driver on its own computer, and its cmd_vel has no business on the world's.
+    hosted = [(robot.name, robot.namespace, robot.agent) for robot in robots if robot.simulated]
+    return bridge_routes(world_agent, hosted, shared)
 
 
 def _check_shared(spec: FleetSpec, robots: list[RobotPlan], templates: TemplateSet) -> None:
