@@ -660,3 +660,35 @@ def test_robots_on_sim_time_without_a_world_are_warned_about(tmp_path):
         "(use_sim_time true, the default): give each `launch_args: {use_sim_time: false}`"
     ]
     assert warnings(mixed.replace("simulated: false", "simulated: false, launch_args: {use_sim_time: false}")) == []
+
+
+def test_the_sim_time_warning_follows_what_the_nodes_start_with(tmp_path):
+    """A real robot's template of the user's own that gives its nodes wall time (a launch
+    argument defaulting to false, or no use_sim_time at all) was warned about in every render
+    and deploy of a fleet on sim time, and could not be silenced: the warning read the fleet's
+    `ros.use_sim_time`, and `launch_args: {use_sim_time: ...}` is refused for a template without
+    that argument.  It now reads what each node starts with."""
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    node = "  - node: {pkg: my_base, exec: base_driver, name: base_driver, param: [{from: {{ params_file }}}%s]}\n"
+    head = "launch:\n%s- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+    wall_arg = '- arg: {name: use_sim_time, default: {{ arg("use_sim_time", false) }}}\n'
+    inline = ", {name: use_sim_time, value: $(var use_sim_time)}"
+    (templates / "wall.launch.yaml.j2").write_text(head % wall_arg + node % inline)
+    (templates / "plain.launch.yaml.j2").write_text(head % "" + node % "")
+    (templates / "sim.launch.yaml.j2").write_text(head % "" + node % ", {name: use_sim_time, value: true}")
+    spec = tmp_path / "fleet.yaml"
+
+    def warned(world: str, robot: str) -> list[str]:
+        spec.write_text(f"fleet: t\ntemplates: templates\n{world}robots:\n- {{name: a}}\n- {{name: b, {robot}}}\n")
+        return [warning.split(": ", 1)[1] for warning in expand_fleet(parse_spec(spec.read_text(), str(spec))).warnings]
+
+    for template in ("wall", "plain"):
+        assert warned("world: {}\n", f"template: {template}, simulated: false") == []
+    assert warned("world: {}\n", "template: wall, simulated: false, launch_args: {use_sim_time: true}") == [
+        "robots b are real (simulated: false) but run on the world's sim time (use_sim_time true, the default): "
+        "give each `launch_args: {use_sim_time: false}`"
+    ]
+    assert warned("world: {}\n", "template: sim, simulated: false")[0].startswith("robots b are real")
+    # Without a world, only the diff_drive robot `a` follows /clock.
+    assert warned("", "template: wall")[0].startswith("robots a run on sim time")
