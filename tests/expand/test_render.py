@@ -692,3 +692,26 @@ def test_the_sim_time_warning_follows_what_the_nodes_start_with(tmp_path):
     assert warned("world: {}\n", "template: sim, simulated: false")[0].startswith("robots b are real")
     # Without a world, only the diff_drive robot `a` follows /clock.
     assert warned("", "template: wall")[0].startswith("robots a run on sim time")
+
+
+def test_render_shows_no_model_or_pose_for_a_robot_the_world_does_not_host(tmp_path, capsys):
+    """A real robot's row showed the light model and a pose at the origin, as if the world
+    would spawn it there; without a world no robot has either."""
+    spec = tmp_path / "mixed.yaml"
+    spec.write_text(
+        "fleet: mixed\nworld: {}\nrobots:\n- {name: sim1, pose: {x: 1.5}}\n"
+        "- {name: bench, simulated: false, launch_args: {use_sim_time: false}}\n"
+    )
+
+    def model_and_pose() -> dict[str, list[str]]:
+        """Robot -> what its row of the Robots table has after its nodes."""
+        assert run_fleet(["render", str(spec)]) == 0
+        rows = [line.split() for line in capsys.readouterr().out.splitlines()]
+        return {row[0]: row[row.index("safety?") + 1 :] for row in rows if len(row) > 2 and row[2].startswith("/")}
+
+    assert model_and_pose() == {"sim1": ["light", "1.50,0.00,0.00"], "bench": ["real"]}
+    assert run_fleet(["render", str(spec), "--json"]) == 0
+    robots = json.loads(capsys.readouterr().out)["robots"]
+    assert [(robot["name"], robot["simulated"]) for robot in robots] == [("sim1", True), ("bench", False)]
+    spec.write_text("fleet: reals\nros: {use_sim_time: false}\nrobots:\n- {name: r1}\n")
+    assert model_and_pose() == {"r1": []}
