@@ -27,6 +27,7 @@ def plan_data(expansion: Expansion) -> dict[str, Any]:
                 "namespace": plan.namespace,
                 "template": plan.template,
                 "isolation": plan.isolation,
+                "simulated": plan.simulated,  # as fleet status --json says it
                 "model": plan.model.model_dump(),
                 "pose": plan.pose,
                 "launch_args": plan.launch_args,
@@ -75,14 +76,16 @@ def print_plan(expansion: Expansion, console) -> None:
     for robot in data["robots"]:
         nodes = ", ".join(node["name"] + ("?" if node["conditional"] else "") for node in robot["nodes"])
         pose = robot["pose"]
+        # A model and a pose are the world's: a robot it does not host has neither.
+        hosted = data["world"] is not None and robot["simulated"]
         robots.add_row(
             robot["name"],
             robot["agent"],
             robot["namespace"],
             robot["template"],
             nodes,
-            robot["model"]["type"],
-            f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}",
+            robot["model"]["type"] if hosted else "real" if data["world"] else "",
+            f"{pose['x']:.2f},{pose['y']:.2f},{pose['yaw']:.2f}" if hosted else "",
         )
     console.print(robots)
     if any(node["conditional"] for robot in data["robots"] for node in robot["nodes"]):

@@ -93,6 +93,20 @@ class RobotPlan:
     def launch_place(self, where: Location) -> Location:
         return Location(rendered_launch_path(self.name), where.line, where.column)
 
+    def start_value(self, node: str, name: str) -> Any:
+        """The value of a node's parameter the node starts with, as far as render can tell: the
+        launch file's inline one (rcl applies it last), else the parameter file's; None where the
+        node keeps its own default, or only the agent's computer can tell (`$(env ...)`)."""
+        if found := self.inline.get(node, {}).get(name):
+            return found.value if found.known else None
+        settings = self.parameters.history.get((node, name))
+        return settings[-1].value if settings and node not in self.without_file else None
+
+    @property
+    def on_sim_time(self) -> bool:
+        """Whether a node of it starts with use_sim_time true, and so takes its time from /clock."""
+        return any(self.start_value(node.name, "use_sim_time") is True for node in self.outline.nodes)
+
 
 @dataclass
 class Expansion:
@@ -299,12 +313,9 @@ def _sim_time_without_world(spec: FleetSpec, robots: list[RobotPlan]) -> list[st
     a world their nodes' time stands still at 0 (timers never fire) until something else publishes
     /clock, a simulator of the user's own, say; a real robot (`simulated: false`) of a fleet with
     a world would run on the simulation's time.  Real robots want `use_sim_time: false`."""
-    unhosted = [plan for plan in robots if spec.world is None or not plan.simulated]
-    on_sim_time = [
-        plan.name
-        for plan in unhosted
-        if plan.launch_args.get("use_sim_time", str(spec.ros.use_sim_time)).lower() != "false"
-    ]
+    # What the nodes start with, not the fleet's setting: a template of the user's own may give
+    # its nodes wall time whatever `ros.use_sim_time` says, or no use_sim_time at all.
+    on_sim_time = [plan.name for plan in robots if (spec.world is None or not plan.simulated) and plan.on_sim_time]
     if not on_sim_time:
         return []
     shown = ", ".join(on_sim_time[:3]) + (f" and {len(on_sim_time) - 3} more" if len(on_sim_time) > 3 else "")
@@ -838,7 +849,10 @@ def _bridge_routes(spec: FleetSpec, bundles: list[Bundle], robots: list[RobotPla
         for robot in robots
         for topic in robot.shared
     ]
-    return bridge_routes(world_agent, [(robot.name, robot.namespace, robot.agent) for robot in robots], shared)
+    # The world's topics cross only for robots it hosts: a real robot's odom comes from its own
+    # driver on its own computer, and its cmd_vel has no business on the world's.
+    hosted = [(robot.name, robot.namespace, robot.agent) for robot in robots if robot.simulated]
+    return bridge_routes(world_agent, hosted, shared)
 
 
 def _check_shared(spec: FleetSpec, robots: list[RobotPlan], templates: TemplateSet) -> None:

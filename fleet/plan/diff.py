@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from fleet.plan.discovery import DiscoveryPlan
 from fleet.plan.parameters import ParameterChange, parameter_changes
@@ -118,7 +119,7 @@ def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, cha
     if len(parameters) > SHOWN_CHANGES:
         named.append(f"and {len(parameters) - SHOWN_CHANGES} more (--json)")
     named += [
-        f"{name} {old.options.get(name)!r} -> {bundle.options.get(name)!r}"
+        _option_change(name, old.options, bundle.options)
         for name in sorted(old.options.keys() | bundle.options.keys())
         if old.options.get(name) != bundle.options.get(name)
     ]
@@ -138,6 +139,12 @@ def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, cha
     if others:
         named.append(f"{', '.join(others)} changed")
     return DiffRow(bundle.name, bundle.agent, change, "; ".join(named) or generic, parameters)
+
+
+def _option_change(name: str, old: Mapping[str, Any], new: Mapping[str, Any]) -> str:
+    if name == "simulated":  # only a real robot's options have it: "simulated None -> False" said nothing
+        return "becomes simulated" if p.simulated_option(new) else "becomes real (simulated: false)"
+    return f"{name} {old.get(name)!r} -> {new.get(name)!r}"
 
 
 def _world_changes(old_text: str, new_text: str) -> list[str] | None:

@@ -5,6 +5,14 @@ a FleetHandle; the pytest plugin (fleet.testing.plugin) offers the same as the `
 Imports stay light: rclpy, zenoh and pybullet load only when a fleet is used.
 """
 
-from fleet.testing.fleet_handle import FleetHandle, FleetLeak, FleetTimeout, Pose, UnknownRobot, running_fleet
+from fleet.testing.fleet_handle import (
+    FleetHandle,
+    FleetLeak,
+    FleetTimeout,
+    NotSimulated,
+    Pose,
+    UnknownRobot,
+    running_fleet,
+)
 
-__all__ = ["FleetHandle", "FleetLeak", "FleetTimeout", "Pose", "UnknownRobot", "running_fleet"]
+__all__ = ["FleetHandle", "FleetLeak", "FleetTimeout", "NotSimulated", "Pose", "UnknownRobot", "running_fleet"]

@@ -59,6 +59,12 @@ class UnknownRobot(KeyError):
         return str(self.args[0])  # KeyError would show the message quoted
 
 
+class NotSimulated(LookupError):
+    """A robot the world does not host (a real one, `simulated: false`, or any robot of a fleet
+    without a world) was asked for what only the world knows: its pose, velocity, battery or
+    contacts.  Waiting does not change that, so wait_for fails at once on it."""
+
+
 class FleetLeak(AssertionError):
     """Processes of the fleet were still alive after it was stopped (they were killed)."""
 
@@ -320,22 +326,38 @@ class FleetHandle:
     def sim_time(self) -> float:
         return float(self._world()["sim_time"])
 
+    def _hosted(self, robot: str) -> str:
+        """`robot`, if the world hosts it: a real robot has no pose, speed or contacts there."""
+        if self._known(robot) not in self.simulated_robots():
+            why = "it is real (simulated: false)" if self.spec.world is not None else "the fleet has no world"
+            raise NotSimulated(
+                f"fleet {self.name}: the world does not host robot {robot!r} ({why}), so it has no pose, "
+                f"velocity, battery or contacts there; read its own topics instead (subscribe({robot!r}, 'odom'))"
+            )
+        return robot
+
+    def _in_world(self, robot: str) -> dict[str, Any]:
+        entry = self._world()["robots"].get(self._hosted(robot))
+        if entry is None:  # not spawned yet: wait_for waits on
+            raise KeyError(f"the world of fleet {self.name} does not host {robot} yet")
+        return entry
+
     def pose(self, robot: str) -> Pose:
-        entry = self._world()["robots"][self._known(robot)]["pose"]
+        entry = self._in_world(robot)["pose"]
         return Pose(entry["x"], entry["y"], entry["yaw"])
 
     def velocity(self, robot: str) -> tuple[float, float]:
         """(linear m/s, angular rad/s) of a robot as the world simulates it."""
-        entry = self._world()["robots"][self._known(robot)]["velocity"]
+        entry = self._in_world(robot)["velocity"]
         return entry["linear"], entry["angular"]
 
     def battery(self, robot: str) -> float | None:
-        return self._world()["robots"][self._known(robot)].get("battery")
+        return self._in_world(robot).get("battery")
 
     def contacts(self, robot: str | None = None) -> list[dict[str, Any]]:
         """The world's recent contacts ({sim_time, a, b, kind}), those involving `robot` if given."""
         if robot is not None:
-            self._known(robot)
+            self._hosted(robot)  # a real robot has none, which must not pass for "no contact"
         last = self._world().get("contacts", {}).get("last", [])
         return [c for c in last if robot is None or robot in (c.get("a"), c.get("b"))]
 
@@ -453,6 +475,7 @@ class FleetHandle:
             interval=interval,
             pause=self._pause,
             retry_on=(Exception,),  # not ready yet (a robot not spawned, the router away, ...)
+            give_up_on=(UnknownRobot, NotSimulated),  # but no wait brings a robot the fleet lacks
             expired=(lambda: clock.elapsed() >= sim_timeout) if sim_timeout is not None else None,
             explain=sim_time_passed,
         )

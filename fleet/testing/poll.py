@@ -23,6 +23,7 @@ def poll(
     interval: float = 0.1,
     pause: Callable[[float], Any] = time.sleep,
     retry_on: tuple[type[Exception], ...] = (),
+    give_up_on: tuple[type[Exception], ...] = (),
     expired: Callable[[], bool] | None = None,
     explain: Callable[[], str] | None = None,
     describe: Callable[[Any], str] = repr,
@@ -31,7 +32,8 @@ def poll(
     return that value.
 
     Between looks, pause(interval) (time.sleep, or spinning an executor so that messages keep
-    arriving).  An exception of a type in `retry_on` counts as "not yet".  After `timeout`
+    arriving).  An exception of a type in `retry_on` counts as "not yet", unless it is of a type
+    in `give_up_on` (one no waiting cures): that one is raised at once.  After `timeout`
     seconds of wall time, or once expired() says another limit ran out (simulated time, say),
     raise WaitTimeout naming `what`, the time waited, the last value seen (as describe(value)
     shows it), the last exception and explain()."""
@@ -43,6 +45,8 @@ def poll(
         try:
             value = observe()
         except retry_on as raised:
+            if isinstance(raised, give_up_on):
+                raise
             error = raised
         if error is None and (until(value) if until is not None else value):
             return value

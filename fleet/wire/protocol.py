@@ -235,6 +235,12 @@ Generation = Annotated[int, Field(ge=0, le=MAX_GENERATION)]
 # Apply: a fleet's complete desired state for one agent
 
 
+def simulated_option(options: Mapping[str, Any]) -> bool:
+    """A bundle's options say `simulated: false` for a real robot only (render leaves the option
+    out for every other unit, so that their digests stay as they were)."""
+    return options.get("simulated") is not False
+
+
 class BundleMessage(BaseModel):
     """fleet.expand.Bundle on the wire (see docs/architecture.md, Bundles)."""
 
@@ -291,7 +297,7 @@ class BundleMessage(BaseModel):
     @property
     def simulated(self) -> bool:
         """False for a real robot (`simulated: false` in the spec), whose data the world does not carry."""
-        return self.options.get("simulated") is not False
+        return simulated_option(self.options)
 
     def digest_matches(self) -> bool:
         """Whether `digest` is that of its files, entry and options: an agent decides what to

@@ -62,8 +62,9 @@ def bridge_routes(
 ) -> dict[str, BridgeRoutes]:
     """agent -> the topics its bridge exports and imports.
 
-    `robots`: (name, namespace, agent) of every robot of the fleet; `shared`: the topics their
-    templates share (one type and QoS per topic name)."""
+    `robots`: (name, namespace, agent) of every robot the world hosts (a real one's topics are
+    its own); `shared`: the topics the templates of the fleet's robots share (one type and QoS
+    per topic name)."""
     routes: dict[str, BridgeRoutes] = {}
     if world_agent is not None:
         _world_routes(routes, world_agent, robots)

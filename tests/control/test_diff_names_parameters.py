@@ -205,3 +205,22 @@ def test_status_replies_say_which_server_each_agents_robots_use():
     view = build_view(replies, [], 0.0)
     assert view.servers_in_use == {"tiny": {replies[0].agent.name: "10.0.0.1:7402", replies[1].agent.name: ""}}
     assert view.only("tiny").servers_in_use == view.servers_in_use
+
+
+def test_a_robot_turned_real_or_simulated_is_said_to_be(tmp_path):
+    """The option only a real robot's bundle has read `simulated None -> False`."""
+    data = yaml.safe_load(TINY.read_text())
+    data["templates"] = str(TINY.parent / data["templates"])
+    spec = tmp_path / "tiny.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    simulated = expand_fleet(load_spec(spec), [])
+    data["robots"][1]["simulated"] = False
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    real = expand_fleet(load_spec(spec), [])
+    for before, after, detail in (
+        (simulated, real, "becomes real (simulated: false)"),
+        (real, simulated, "becomes simulated"),
+    ):
+        deployed = {b.name: b for request in requests_for(before, 5, set()) for b in request.bundles}
+        rows = {row.robot: row for row in diff(after, build_view(running(before), [], 0.0), deployed)}
+        assert (rows["robot2"].change, rows["robot2"].detail) == ("restart", detail)

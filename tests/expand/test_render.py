@@ -660,3 +660,58 @@ def test_robots_on_sim_time_without_a_world_are_warned_about(tmp_path):
         "(use_sim_time true, the default): give each `launch_args: {use_sim_time: false}`"
     ]
     assert warnings(mixed.replace("simulated: false", "simulated: false, launch_args: {use_sim_time: false}")) == []
+
+
+def test_the_sim_time_warning_follows_what_the_nodes_start_with(tmp_path):
+    """A real robot's template of the user's own that gives its nodes wall time (a launch
+    argument defaulting to false, or no use_sim_time at all) was warned about in every render
+    and deploy of a fleet on sim time, and could not be silenced: the warning read the fleet's
+    `ros.use_sim_time`, and `launch_args: {use_sim_time: ...}` is refused for a template without
+    that argument.  It now reads what each node starts with."""
+    templates = tmp_path / "templates"
+    templates.mkdir()
+    node = "  - node: {pkg: my_base, exec: base_driver, name: base_driver, param: [{from: {{ params_file }}}%s]}\n"
+    head = "launch:\n%s- group:\n  - push_ros_namespace: {namespace: {{ robot.namespace }}}\n"
+    wall_arg = '- arg: {name: use_sim_time, default: {{ arg("use_sim_time", false) }}}\n'
+    inline = ", {name: use_sim_time, value: $(var use_sim_time)}"
+    (templates / "wall.launch.yaml.j2").write_text(head % wall_arg + node % inline)
+    (templates / "plain.launch.yaml.j2").write_text(head % "" + node % "")
+    (templates / "sim.launch.yaml.j2").write_text(head % "" + node % ", {name: use_sim_time, value: true}")
+    spec = tmp_path / "fleet.yaml"
+
+    def warned(world: str, robot: str) -> list[str]:
+        spec.write_text(f"fleet: t\ntemplates: templates\n{world}robots:\n- {{name: a}}\n- {{name: b, {robot}}}\n")
+        return [warning.split(": ", 1)[1] for warning in expand_fleet(parse_spec(spec.read_text(), str(spec))).warnings]
+
+    for template in ("wall", "plain"):
+        assert warned("world: {}\n", f"template: {template}, simulated: false") == []
+    assert warned("world: {}\n", "template: wall, simulated: false, launch_args: {use_sim_time: true}") == [
+        "robots b are real (simulated: false) but run on the world's sim time (use_sim_time true, the default): "
+        "give each `launch_args: {use_sim_time: false}`"
+    ]
+    assert warned("world: {}\n", "template: sim, simulated: false")[0].startswith("robots b are real")
+    # Without a world, only the diff_drive robot `a` follows /clock.
+    assert warned("", "template: wall")[0].startswith("robots a run on sim time")
+
+
+def test_render_shows_no_model_or_pose_for_a_robot_the_world_does_not_host(tmp_path, capsys):
+    """A real robot's row showed the light model and a pose at the origin, as if the world
+    would spawn it there; without a world no robot has either."""
+    spec = tmp_path / "mixed.yaml"
+    spec.write_text(
+        "fleet: mixed\nworld: {}\nrobots:\n- {name: sim1, pose: {x: 1.5}}\n"
+        "- {name: bench, simulated: false, launch_args: {use_sim_time: false}}\n"
+    )
+
+    def model_and_pose() -> dict[str, list[str]]:
+        """Robot -> what its row of the Robots table has after its nodes."""
+        assert run_fleet(["render", str(spec)]) == 0
+        rows = [line.split() for line in capsys.readouterr().out.splitlines()]
+        return {row[0]: row[row.index("safety?") + 1 :] for row in rows if len(row) > 2 and row[2].startswith("/")}
+
+    assert model_and_pose() == {"sim1": ["light", "1.50,0.00,0.00"], "bench": ["real"]}
+    assert run_fleet(["render", str(spec), "--json"]) == 0
+    robots = json.loads(capsys.readouterr().out)["robots"]
+    assert [(robot["name"], robot["simulated"]) for robot in robots] == [("sim1", True), ("bench", False)]
+    spec.write_text("fleet: reals\nros: {use_sim_time: false}\nrobots:\n- {name: r1}\n")
+    assert model_and_pose() == {"r1": []}

@@ -224,3 +224,22 @@ def test_status_says_when_no_agent_has_seen_a_publisher_for_a_while():
     assert row["problem"] == ""
     (row,) = shared_topic_rows({"/t": states(rack_a=(12.0, 0.5), rack_b=(None, 60.0))})  # rack_b's watch is stale
     assert row["problem"].endswith("for 12 s") and row["publishers"] == {"rack_a": 0}
+
+
+def test_the_worlds_topics_do_not_cross_for_a_real_robot():
+    """A real robot (`simulated: false`) on another agent than the world's: its agent's bridge
+    published phantom odom, scan and ground_truth (and /clock) beside its own driver's, and sent
+    its every cmd_vel to the world's computer, which hosts no such robot."""
+    from fleet.spec import parse_spec
+
+    spec = (
+        "fleet: demo\nros: {transport: zenoh}\nworld: {agent: sim}\nagents: {sim: {}, rack: {}, bench: {}}\n"
+        "robots:\n- {name: s1, agent: rack}\n- {name: r1, agent: rack, simulated: false}\n"
+        "- {name: r2, agent: bench, simulated: false}\n"
+    )
+    routes = routes_of(expand_fleet(parse_spec(spec, "f.yaml")))
+    s1 = ["/s1/odom", "/s1/scan", "/s1/ground_truth"]
+    assert routes == {
+        "sim": (["/clock", *s1], ["/s1/cmd_vel", "/s1/battery"]),
+        "rack": (["/s1/cmd_vel", "/s1/battery"], ["/clock", *s1]),
+    }

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.testing import FleetHandle, UnknownRobot
+from fleet.testing import FleetHandle, NotSimulated, UnknownRobot
 from tests.e2e.e2e_helpers import TWO_ROBOTS
 
 WORLD_STATUS = {
@@ -66,3 +66,40 @@ def test_known_robots_still_answer(fleet):
     assert fleet.pose("robot1").x == 1.0
     assert fleet.contacts("robot1") and not fleet.contacts("robot2")
     assert fleet.topic("robot2", "odom") == "/robot2/odom"
+
+
+MIXED = """\
+fleet: mixed
+world: {}
+robots:
+- {name: sim1}
+- {name: bench, simulated: false, launch_args: {use_sim_time: false}}
+"""
+
+
+@pytest.mark.parametrize(
+    "use",
+    [
+        lambda fleet: fleet.pose("bench"),
+        lambda fleet: fleet.velocity("bench"),
+        lambda fleet: fleet.battery("bench"),
+        lambda fleet: fleet.contacts("bench"),
+        lambda fleet: fleet.wait_for(lambda: fleet.pose("bench").x > 1.0, timeout=5),
+    ],
+    ids=["pose", "velocity", "battery", "contacts", "wait_for"],
+)
+def test_a_real_robot_has_nothing_in_the_world_and_says_so(tmp_path, monkeypatch, use):
+    """The world does not host a real robot (`simulated: false`): asking it for one's pose was a
+    bare KeyError('bench'), its contacts an empty list (so `assert not fleet.contacts("bench")`
+    passed by looking at nobody), and a wait on its pose ran to its timeout."""
+    spec = tmp_path / "mixed.yaml"
+    spec.write_text(MIXED)
+    handle = FleetHandle(spec, tmp_path / "fleet")
+    robot1 = {"pose": {"x": 1.0, "y": 0.0, "yaw": 0.0}, "velocity": {"linear": 0.2, "angular": 0.0}}
+    monkeypatch.setattr(handle, "world", lambda: {**WORLD_STATUS, "robots": {"sim1": robot1}})
+    try:
+        assert handle.pose("sim1").x == 1.0
+        with pytest.raises(NotSimulated, match=r"^fleet mixed: the world does not host robot 'bench' \(it is real"):
+            use(handle)
+    finally:
+        handle.close()
