@@ -9,13 +9,16 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import psutil
 import pytest
 
+from fleet.errors import SpecError
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
+from fleet.testing import running_fleet
 from fleet.testing.isolation import with_domain_id
 from tests.e2e.e2e_helpers import SAFETY_STOP
 
@@ -126,3 +129,22 @@ def test_a_user_fixture_failing_on_its_fleet_reports_it_too(tmp_path):
     assert done.returncode == 1 and "ERROR at setup of test_scout_beyond" in output, output
     for section in ("status", "control plane", "node logs", "world"):
         assert f"fleet safety_stop: {section}" in output, output
+
+
+def test_running_fleet_removes_the_directory_it_made_once_the_fleet_ended_cleanly(tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where running_fleet makes its own
+    with running_fleet(SAFETY_STOP) as fleet:
+        made = fleet.root
+        assert made.parent == tmp_path and (made / "router.log").exists()
+    assert not made.exists()
+
+    # A failing body keeps it: the report printed names its logs.
+    with pytest.raises(RuntimeError, match="on purpose"), running_fleet(SAFETY_STOP) as fleet:
+        kept = fleet.root
+        raise RuntimeError("on purpose")
+    assert (kept / "router.log").exists()
+
+    # A spec that never ran leaves nothing.
+    with pytest.raises(SpecError), running_fleet(tmp_path / "missing.yaml"):
+        pass
+    assert list(tmp_path.iterdir()) == [kept]
