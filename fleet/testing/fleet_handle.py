@@ -17,6 +17,7 @@ from __future__ import annotations
 import importlib
 import math
 import os
+import shutil
 import signal
 import sys
 import tempfile
@@ -687,9 +688,19 @@ def running_fleet(
 ) -> Iterator[FleetHandle]:
     """Bring a fleet up from a spec (a YAML path or a FleetSpec), isolated from everything else
     on this machine; yield its FleetHandle; tear it all down afterwards, also on failure.  When
-    the body raises, the fleet's status, node logs and a world snapshot are printed to stderr."""
+    the body raises, the fleet's status, node logs and a world snapshot are printed to stderr.
+
+    Without `directory`, the fleet's files go to a new temporary directory, removed once the
+    fleet ended cleanly (a script run again and again would fill /tmp with them) and kept, for
+    its logs, when anything failed."""
+    own_directory = directory is None
     directory = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix="fleet-test-"))
-    handle = FleetHandle(spec, directory, sets)
+    try:
+        handle = FleetHandle(spec, directory, sets)
+    except BaseException:  # a bad spec: nothing ran, so nothing is worth keeping
+        if own_directory:
+            shutil.rmtree(directory, ignore_errors=True)
+        raise
     try:
         handle.start(timeout)
         yield handle
@@ -701,4 +712,6 @@ def running_fleet(
                 print(f"(fleet failure report unavailable: {report_error})", file=sys.stderr)
         handle.close(check_leaks=False)
         raise
-    handle.close(check_leaks=check_leaks)
+    handle.close(check_leaks=check_leaks)  # a leak raises here, keeping the directory too
+    if own_directory:
+        shutil.rmtree(directory, ignore_errors=True)

@@ -56,7 +56,8 @@ def fleet_up(tmp_path):
 def pytest_runtest_makereport(item, call):
     outcome = yield
     report = outcome.get_result()
-    if report.when != "call" or not report.failed:
+    # "setup" too: a fixture of the user's that calls fleet_up and waits fails there
+    if report.when not in ("setup", "call") or not report.failed:
         return
     for handle in list(OPEN_HANDLES):
         snapshot = handle.root / f"failure-{_file_name(item.name)}.png"

@@ -188,6 +188,12 @@ class RosProbe:
                 self._spin_once(0.02)  # subscriptions keep receiving meanwhile
         publisher.publish(message)
 
+    def _neighbours(self, service: str) -> str:
+        """The nodes in the graph beside a service's node (a mistyped node name shows the right one)."""
+        namespace = service.rsplit("/", 2)[0] or "/"
+        inside = sorted(n for n in self.node_names() if n.rsplit("/", 1)[0] == namespace.rstrip("/"))
+        return f"nodes in {namespace} now: {', '.join(inside) or 'none'}"
+
     # --- parameters --------------------------------------------------------------------------
 
     def _call(self, service_type, name: str, request, timeout: float):
@@ -196,7 +202,7 @@ class RosProbe:
         client = self.node.create_client(service_type, name)
         try:
             if not client.wait_for_service(timeout_sec=timeout):
-                raise AssertionError(f"service {name} not available after {timeout:.0f} s")
+                raise AssertionError(f"service {name} not available after {timeout:.0f} s; {self._neighbours(name)}")
             spin = lambda future, seconds: self.executor.spin_until_future_complete(future, timeout_sec=seconds)  # noqa: E731
             response = call_service(client, request, spin, timeout)
             if response is None:

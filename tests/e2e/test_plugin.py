@@ -9,13 +9,16 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import psutil
 import pytest
 
+from fleet.errors import SpecError
 from fleet.expand import expand_fleet
 from fleet.spec import load_spec
+from fleet.testing import running_fleet
 from fleet.testing.isolation import with_domain_id
 from tests.e2e.e2e_helpers import SAFETY_STOP
 
@@ -41,11 +44,13 @@ def test_spec_gets_the_reserved_domain_and_stays_unchanged():
     assert isolated.source_file == spec.source_file and isolated.robots == spec.robots
 
 
-def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
+def run_user_tests(tmp_path: Path, test_text: str) -> tuple[subprocess.CompletedProcess, Path]:
+    """Run `test_text` with pytest in a repository of its own, as a fleet user does; returns the
+    run and its --basetemp."""
     repo = tmp_path / "my_robots"
     (repo / "fleets").mkdir(parents=True)
     shutil.copy(SAFETY_STOP, repo / "fleets" / "safety_stop.yaml")
-    (repo / "test_scout.py").write_text(USER_TEST)
+    (repo / "test_scout.py").write_text(test_text)
     basetemp = tmp_path / "basetemp"
 
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
@@ -67,6 +72,11 @@ def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
         text=True,
         timeout=240,
     )
+    return done, basetemp
+
+
+def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
+    done, basetemp = run_user_tests(tmp_path, USER_TEST)
     output = done.stdout + done.stderr
     assert done.returncode == 1, output
     assert "timed out waiting for scout to pass the crate" in output and "s of sim time (limit 3)" in output
@@ -89,3 +99,52 @@ def test_a_failing_user_test_reports_status_logs_and_snapshot(tmp_path):
             return False
 
     assert not [p.pid for p in psutil.process_iter() if of_that_run(p)]
+
+
+USER_FIXTURE_TEST = """
+from pathlib import Path
+
+import pytest
+
+SPEC = Path(__file__).parent / "fleets" / "safety_stop.yaml"
+
+
+@pytest.fixture
+def scout_past_the_crate(fleet_up):
+    fleet = fleet_up(SPEC)
+    fleet.wait_for(lambda: fleet.pose("scout").x > 3.0, sim_timeout=3, what="scout to pass the crate")
+    return fleet
+
+
+def test_scout_beyond(scout_past_the_crate):
+    pass
+"""
+
+
+def test_a_user_fixture_failing_on_its_fleet_reports_it_too(tmp_path):
+    """A fixture that brings the fleet up and waits on it fails in the test's setup: the report
+    shows the fleet there as it does for a failing test body."""
+    done, _ = run_user_tests(tmp_path, USER_FIXTURE_TEST)
+    output = done.stdout + done.stderr
+    assert done.returncode == 1 and "ERROR at setup of test_scout_beyond" in output, output
+    for section in ("status", "control plane", "node logs", "world"):
+        assert f"fleet safety_stop: {section}" in output, output
+
+
+def test_running_fleet_removes_the_directory_it_made_once_the_fleet_ended_cleanly(tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where running_fleet makes its own
+    with running_fleet(SAFETY_STOP) as fleet:
+        made = fleet.root
+        assert made.parent == tmp_path and (made / "router.log").exists()
+    assert not made.exists()
+
+    # A failing body keeps it: the report printed names its logs.
+    with pytest.raises(RuntimeError, match="on purpose"), running_fleet(SAFETY_STOP) as fleet:
+        kept = fleet.root
+        raise RuntimeError("on purpose")
+    assert (kept / "router.log").exists()
+
+    # A spec that never ran leaves nothing.
+    with pytest.raises(SpecError), running_fleet(tmp_path / "missing.yaml"):
+        pass
+    assert list(tmp_path.iterdir()) == [kept]

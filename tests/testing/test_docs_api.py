@@ -34,3 +34,13 @@ def test_the_docs_name_every_parameter_as_the_code_does():
         if params != actual:
             wrong[name] = (params, actual)
     assert not wrong, "documented vs actual parameters: " + repr(wrong)
+
+
+def test_the_failure_example_shows_a_domain_tests_reserve():
+    text = (REPO / "docs" / "testing.md").read_text()
+    stated = re.search(r"`ROS_DOMAIN_ID` in (\d+)\.\.(\d+)", text)
+    example = re.search(r"^domain (\d+), router ", text, re.MULTILINE)
+    assert stated and example
+    first, last = map(int, stated.groups())
+    shown = int(example.group(1))
+    assert first <= shown <= last, f"the failure example shows domain {shown}, outside {first}..{last}"

@@ -103,3 +103,13 @@ def test_an_undeclared_parameter_is_named_in_the_error(probes):
     assert test.get_parameters("/robot_node", ["max_speed"]) == [0.4]
     with pytest.raises(NoSuchParameter, match=r"node /robot_node has no parameter 'no_such_param'"):
         test.get_parameters("/robot_node", ["no_such_param"])
+
+
+def test_a_node_not_there_is_named_with_the_nodes_beside_it(probes):
+    test, _ = probes
+    test.wait_for_nodes({"/robot_node"}, timeout=10)
+    with pytest.raises(
+        AssertionError,
+        match=r"service /robot_nod/get_parameters not available after 1 s; nodes in / now: .*/robot_node",
+    ):
+        test.get_parameters("/robot_nod", ["max_speed"], timeout=1)
