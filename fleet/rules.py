@@ -198,8 +198,13 @@ def services_dir(agent: Path) -> Path:
     return agent / "services"
 
 
+def hosts_root(agent: Path) -> Path:
+    """Where an agent's host pools (isolation: agent) keep their logs, one directory each."""
+    return agent / "hosts"
+
+
 def hosts_dir(agent: Path, fleet: str, number: int) -> Path:
-    return agent / "hosts" / f"{fleet}-{number}"
+    return hosts_root(agent) / f"{fleet}-{number}"
 
 
 def ros_name_problem(name: object) -> str | None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import shutil
 import signal
 import socket
@@ -41,6 +42,11 @@ POLL = 0.5  # s between status requests (and liveness checks) of a host
 STOP_TIMEOUTS = (5.0, 5.0)  # SIGINT, then SIGTERM after the first, SIGKILL after both
 
 
+# Unix socket paths are limited to 107 bytes: a pool's sockets are in a short private directory
+# of the system's temporary one, not in the state dir, which holds a link to it instead, so that
+# the next agent on that state dir removes it when a killed agent could not.
+SOCKET_DIR_PREFIX = "fleet-hosts-"
+SOCKET_DIR_LINK = "sockets"
 HOST_STATES = {"running": RUNNING, "backoff": BACKOFF, "failed": FAILED}  # a host's word for a robot -> ours
 
 
@@ -372,8 +378,10 @@ class HostPool:
         self.directory = directory
         self.env = dict(env)
         self.group_size = group_size
-        # Unix socket paths are limited to 107 bytes: a short private directory, not the state dir.
-        self.socket_dir = Path(tempfile.mkdtemp(prefix="fleet-hosts-"))
+        self.socket_dir = Path(tempfile.mkdtemp(prefix=SOCKET_DIR_PREFIX))
+        directory.mkdir(parents=True, exist_ok=True)
+        (directory / SOCKET_DIR_LINK).unlink(missing_ok=True)
+        (directory / SOCKET_DIR_LINK).symlink_to(self.socket_dir)
         self.hosts: list[HostProcess] = []
         self._where: dict[str, HostProcess] = {}
         self._numbers = 0
@@ -387,7 +395,6 @@ class HostPool:
             index = place([host.size() for host in self.hosts], self.group_size)
             if index is None:
                 self._numbers += 1
-                self.directory.mkdir(parents=True, exist_ok=True)
                 self.hosts.append(HostProcess(self._numbers, self.socket_dir, self.directory, self.env))
                 index = len(self.hosts) - 1
             host = self.hosts[index]
@@ -462,3 +469,15 @@ class HostPool:
             self._where.clear()
         stop_all(host.stop for host in hosts)
         shutil.rmtree(self.socket_dir, ignore_errors=True)
+        (self.directory / SOCKET_DIR_LINK).unlink(missing_ok=True)
+
+
+def remove_orphaned_socket_dirs(hosts_root: Path) -> None:
+    """Remove the socket directories of the host pools under `hosts_root` whose agent was killed
+    (their stop never ran): each pool's directory links to its own."""
+    for link in hosts_root.glob(f"*/{SOCKET_DIR_LINK}"):
+        target = Path(os.readlink(link)) if link.is_symlink() else None
+        ours = target is not None and target.parent == Path(tempfile.gettempdir())
+        if ours and target is not None and target.name.startswith(SOCKET_DIR_PREFIX):
+            shutil.rmtree(target, ignore_errors=True)
+        link.unlink(missing_ok=True)

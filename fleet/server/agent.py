@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from fleet import __version__
 from fleet.errors import SpecError
 from fleet.files import write_atomic
-from fleet.rules import PARAMS_SUFFIX, hosts_dir, services_dir
+from fleet.rules import PARAMS_SUFFIX, hosts_dir, hosts_root, services_dir
 from fleet.runtime.node_log import logger_name
 from fleet.runtime.processes import ServiceProcess, stop_all
 from fleet.server.logs import robot_logs
@@ -137,6 +137,7 @@ class Agent:
         self._watching_nodes: set[str] = set()
         # (fleet, environment, group size) -> HostPool: the host processes of isolation: agent
         self._hosting: dict[tuple[str, str, int], Any] = {}
+        self._pools_made = 0  # numbers their directories: a pool dropped when idle leaves a gap
         # (fleet, unit) -> `fleet restart`s asked for, and those the reconcile thread has yet to carry out
         self._restarts_asked: dict[tuple[str, str], int] = {}
         self._restarts_due: set[tuple[str, str]] = set()
@@ -157,7 +158,10 @@ class Agent:
         # inherit our working directory, and one that happens to hold a Python project (the
         # fleet checkout itself, say) can change what they import.
         os.chdir(self.store.root)
+        from fleet.runtime.hosting import remove_orphaned_socket_dirs
+
         stop_leftover_processes(self.store.root)
+        remove_orphaned_socket_dirs(hosts_root(self.store.root))
         self._restore()
         worker = threading.Thread(target=self._reconcile_loop, name="fleet-agent-reconcile")
         worker.start()
@@ -545,7 +549,8 @@ class Agent:
         with self._lock:
             pool = self._hosting.get(key)
             if pool is None:
-                directory = hosts_dir(self.store.root, fleet, len(self._hosting) + 1)
+                self._pools_made += 1
+                directory = hosts_dir(self.store.root, fleet, self._pools_made)
                 pool = self._hosting[key] = HostPool(directory, env, group_size)
         return pool
 

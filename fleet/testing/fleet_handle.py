@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fleet.rules import WORLD_STATUS_FILE, WORLD_UNIT, unit_dir, unit_log_dir
+from fleet.rules import WORLD_STATUS_FILE, WORLD_UNIT, hosts_root, unit_dir, unit_log_dir
 from fleet.testing.control_plane import ROUTER, ControlPlane, agent_key, child_environment
 from fleet.testing.isolation import reserve_domain_id, with_domain_id
 from fleet.testing.poll import WaitTimeout, poll
@@ -143,6 +143,10 @@ class FleetHandle:
                 self._probe = None
             self.control.stop()
         finally:
+            from fleet.runtime.hosting import remove_orphaned_socket_dirs
+
+            for agent in self._started_agents:  # one killed (by a test, or by stop) left its hosts' sockets
+                remove_orphaned_socket_dirs(hosts_root(self.control.agent_dir(agent)))
             leftovers = processes_marked(self.marker)
             described = [_describe(process) for process in leftovers]
             if leftovers:
