@@ -10,6 +10,7 @@ children do.
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import logging
 import os
 import signal
@@ -25,6 +26,8 @@ import psutil
 from fleet.lifetime import die_with_parent
 
 _log = logging.getLogger("fleet.processes")
+STACKS_SIGNAL = signal.SIGUSR1  # a daemon writes its threads' stacks to stderr (stop_on_signals)
+STACKS_WAIT = 1.0  # s to let it write them before it is killed
 
 
 def spawn(
@@ -182,8 +185,12 @@ def stop_all(stoppers: Iterable[Callable[[], None]]) -> None:
 
 def stop_on_signals(stop: threading.Event | None = None) -> threading.Event:
     """`stop` (or a new event) set by SIGINT or SIGTERM: a daemon finishes cleanly (stops its
-    robots, closes its sessions) instead of dying mid-way.  Call from the main thread."""
+    robots, closes its sessions) instead of dying mid-way.  Call from the main thread.
+
+    SIGUSR1 makes it write every thread's stack to stderr (its log), so that a stop that hangs
+    can be read before the daemon is killed (fleet.testing does so)."""
     stop = stop or threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
+    faulthandler.register(STACKS_SIGNAL, all_threads=True)
     return stop

@@ -16,6 +16,7 @@ where pytest runs tests and fixtures.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -26,6 +27,7 @@ from typing import TYPE_CHECKING
 
 from fleet import rules
 from fleet.lifetime import die_with_parent
+from fleet.runtime.processes import STACKS_SIGNAL, STACKS_WAIT
 from fleet.testing.isolation import free_tcp_port
 from fleet.testing.poll import WaitTimeout, poll
 
@@ -134,9 +136,15 @@ class ControlPlane:
         try:
             process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
+            process.send_signal(STACKS_SIGNAL)  # where it hangs, for the log, before it goes
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                process.wait(timeout=STACKS_WAIT)
             process.kill()
             process.wait()
-            self.forced.append(f"{key} (pid {process.pid}) did not exit within {timeout:g} s of SIGTERM: SIGKILLed")
+            self.forced.append(
+                f"{key} (pid {process.pid}) did not exit within {timeout:g} s of SIGTERM: SIGKILLed "
+                f"(its threads' stacks then are in {self.log_path(key)})"
+            )
 
     def stop(self) -> None:
         """Agents first (each stops its robots, all at once), then the router."""
