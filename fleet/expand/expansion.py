@@ -563,10 +563,14 @@ def _apply_overrides(spec: FleetSpec, robots: list[RobotPlan], overrides: list[O
         where = Location(f"--set {override.text}")
         plan = by_name.get(override.robot)
         if plan is None:
-            raise SpecError(f"no robot {override.robot!r} in {spec.source_file} (robots: {', '.join(by_name)})", where)
+            hint = did_you_mean(override.robot, by_name)
+            raise SpecError(
+                f"no robot {override.robot!r} in {spec.source_file}{hint} (robots: {', '.join(by_name)})", where
+            )
         nodes = sorted({node.name for node in plan.outline.nodes}) + list(plan.parameters.hosted)
         if override.node not in nodes:
-            raise SpecError(f"robot {plan.name} has no node {override.node!r} (nodes: {', '.join(nodes)})", where)
+            hint = did_you_mean(override.node, nodes)
+            raise SpecError(f"robot {plan.name} has no node {override.node!r}{hint} (nodes: {', '.join(nodes)})", where)
         group = plan.parameters.group_of(override.node, override.parameter)
         if group:
             # Written as one value, the group would vanish from the file: refused, whatever the

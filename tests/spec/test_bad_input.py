@@ -213,6 +213,9 @@ def test_bad_spec(tmp_path, capsys, spec_text, expected):
     [
         ("robot9.controller.max_speed=0.8", "no robot 'robot9'"),
         ("robot1.navigator.max_speed=0.8", "robot robot1 has no node 'navigator'"),
+        ("robto1.controller.max_speed=0.8", "no robot 'robto1' in"),
+        ("robto1.controller.max_speed=0.8", "(did you mean 'robot1'?)"),
+        ("robot1.controler.max_speed=0.8", "has no node 'controler' (did you mean 'controller'?)"),
         ("robot1.controller.max_speed", "expected ROBOT.NODE.PARAMETER=VALUE"),
         ("robot1.controller.max_speed=[[1]]", "nested lists"),
         ("robot1.controller.max_speed=fast", "is float in the template layer"),
