@@ -396,6 +396,10 @@ _ROS_OPTIONS = frozenset(
     {"-r", "--remap", "-p", "--param", "--params-file", "--log-level", "-e", "--enclave", "--log-file-name"}
 )
 LOG_LEVELS = ("debug", "info", "warn", "error", "fatal", "unset")  # rcutils' severities, any case
+# rclpy.init arguments of fleet's own ROS helpers (parameter calls, graph watch, bridge): no
+# /rosout, and no rcl log file, which rcl would otherwise create for each of their processes
+# (one per `fleet param` command) in ~/.ros/log, where nothing ever removes it.
+HELPER_ROS_ARGS = ("--ros-args", "--disable-rosout-logs", "--disable-external-lib-logs")
 
 
 def ros_arguments_problem(arguments: list[str]) -> str | None:

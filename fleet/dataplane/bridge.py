@@ -369,13 +369,13 @@ def main(argv: list[str]) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from fleet.dataplane.receive_buffers import use_large_receive_buffers
-    from fleet.rules import service_node_name
+    from fleet.rules import HELPER_ROS_ARGS, service_node_name
     from fleet.runtime.processes import stop_on_signals
 
     stop = stop_on_signals()
     if warning := use_large_receive_buffers(Path(argv[0]).with_suffix(".fastdds.xml")):
         log.warning("%s", warning)
-    rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=list(HELPER_ROS_ARGS), signal_handler_options=SignalHandlerOptions.NO)
     # No executor: the exporter takes messages itself, and nothing else here needs spinning.
     node = rclpy.create_node(service_node_name("bridge", fleet), start_parameter_services=False)
     bridge = Bridge(fleet, agent, routes.exports, routes.imports, node)

@@ -23,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from fleet.rules import service_node_name
+from fleet.rules import HELPER_ROS_ARGS, service_node_name
 
 PERIOD = 1.0  # s between counts
 
@@ -53,7 +53,7 @@ def main(argv: list[str]) -> int:
     from fleet.runtime.processes import stop_on_signals
 
     stop = stop_on_signals()
-    rclpy.init(args=["--ros-args", "--disable-rosout-logs"], signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=list(HELPER_ROS_ARGS), signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(service_node_name("watch", fleet))
     bridge = service_node_name("bridge", fleet)
     started, started_wall = time.monotonic(), time.time()

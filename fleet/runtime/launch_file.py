@@ -84,6 +84,7 @@ class LaunchPlan:
     arguments: dict[str, str]  # launch arguments (declared and given) and their values
     nodes: list[NodeLaunch]
     logs: list[str] = field(default_factory=list)  # what `log` actions said, in order
+    params_files: list[str] = field(default_factory=list)  # the inline parameter files it wrote
 
 
 # ---------------------------------------------------------------------------------------------
@@ -672,9 +673,9 @@ def _write_inline_params(key: str, params: dict, directory: str | None) -> str:
         return handle.name
 
 
-def _command(draft: _NodeDraft, params_dir: str | None) -> list[str]:
+def _command(draft: _NodeDraft, params_dir: str | None, written: list[str]) -> list[str]:
     """`<exe> [args] [--ros-args <ros_args>] --ros-args -r __node:= -r __ns:= -p ... --params-file ...
-    -r from:=to ...`, in launch_ros's order."""
+    -r from:=to ...`, in launch_ros's order; the inline parameter files it writes are added to `written`."""
     launch = draft.launch
     if draft.executable_path is None:
         return list(launch.cmd)
@@ -692,7 +693,8 @@ def _command(draft: _NodeDraft, params_dir: str | None) -> list[str]:
         elif param[0] == "rule":
             cmd += ["-p", param[1]]
         else:
-            cmd += ["--params-file", _write_inline_params(param[1], param[2], params_dir)]
+            written.append(_write_inline_params(param[1], param[2], params_dir))
+            cmd += ["--params-file", written[-1]]
     for source, target in draft.remaps:
         cmd += ["-r", f"{source}:={target}"]
     return cmd
@@ -824,7 +826,10 @@ def load_launch_file(
     directory = None if params_dir is None else str(params_dir)
     if directory is not None:
         os.makedirs(directory, exist_ok=True)
+    written: list[str] = []
     for draft in interpreter.drafts:
-        draft.launch.cmd = _command(draft, directory)
+        draft.launch.cmd = _command(draft, directory, written)
     nodes = _process_names(interpreter.drafts)
-    return LaunchPlan(path=path, arguments=interpreter.arguments, nodes=nodes, logs=interpreter.logs)
+    return LaunchPlan(
+        path=path, arguments=interpreter.arguments, nodes=nodes, logs=interpreter.logs, params_files=written
+    )

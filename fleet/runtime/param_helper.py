@@ -19,6 +19,8 @@ import json
 import sys
 import time
 
+from fleet.rules import HELPER_ROS_ARGS
+
 SERVICE_TIMEOUT = 20.0
 
 
@@ -190,7 +192,7 @@ def main(argv: list[str]) -> int:
     from rcl_interfaces.srv import GetParameters, SetParameters
     from rclpy.parameter import Parameter
 
-    rclpy.init(args=["--ros-args", "--disable-rosout-logs"])
+    rclpy.init(args=list(HELPER_ROS_ARGS))
     node = rclpy.create_node(f"fleet_param_{__import__('os').getpid()}")
     try:
         if argv[0] == "list":

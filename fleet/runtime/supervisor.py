@@ -291,6 +291,10 @@ class LaunchSession:
             self._log_end(process)
             process.output.close()
         self._close_wake_pipe()
+        # Nothing of this session reads its inline parameter files any more (a respawn would):
+        # left behind, every restart or redeploy of a unit added its own set to its log directory.
+        for name in self.plan.params_files if self.plan is not None else []:
+            Path(name).unlink(missing_ok=True)
 
     def __enter__(self) -> LaunchSession:
         self.start()

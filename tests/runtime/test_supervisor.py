@@ -336,6 +336,22 @@ def test_nothing_left_after_stop(prefix, write_launch, tmp_path):
     assert not pid_alive(leader) and not pid_alive(child)
 
 
+def test_restarting_a_session_leaves_no_inline_parameter_files_behind(prefix, write_launch, tmp_path):
+    """An agent starts a new session over the same log directory at every restart and redeploy
+    of a robot: each one's inline parameter files must go when it stops, or they pile up."""
+    prefix.add("sleeper", SLEEPER)
+    nodes = "- node: {pkg: demo, exec: sleeper, name: s, param: [{name: a, value: 1}, {name: b, value: 2}]}\n"
+    params = tmp_path / "logs" / "params"
+    for _ in range(5):
+        session = session_for(prefix, write_launch, tmp_path, nodes)
+        session.start()
+        written = sorted(params.iterdir())
+        assert len(written) == 2  # what its node reads, at its start and at each respawn
+        assert all(str(path) in session.status()[0].cmd for path in written)
+        session.stop()
+        assert list(params.iterdir()) == []
+
+
 def test_node_exit_kills_what_it_left_in_its_group(prefix, write_launch, tmp_path):
     prefix.add("parent", PARENT)
     session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: parent}\n")
