@@ -31,7 +31,15 @@ from typing import IO, Any
 from fleet.rules import backoff_delay
 from fleet.runtime import ament
 from fleet.runtime.launch_file import NodeLaunch
-from fleet.runtime.node_log import LOG_FORMAT, ProcessOutput, belongs_to, logger_name, logger_of
+from fleet.runtime.node_log import (
+    LOG_FORMAT,
+    ProcessOutput,
+    belongs_to,
+    logger_name,
+    logger_of,
+    prune_rcl_logs,
+    rcl_log_dir,
+)
 from fleet.runtime.processes import group_exists, signal_group, spawn, stop_all
 from fleet.runtime.supervisor import BACKOFF, FAILED, RUNNING, STARTING, NodeStatus, ended_problem
 
@@ -88,7 +96,7 @@ def host_environment(env: Mapping[str, str], log_dir: Path) -> dict[str, str]:
     result = dict(env)
     result["AMENT_PREFIX_PATH"] = ament.ament_prefix_path(env)
     result.setdefault("PYTHONUNBUFFERED", "1")
-    result.setdefault("ROS_LOG_DIR", str(log_dir / "ros"))
+    result.setdefault("ROS_LOG_DIR", str(rcl_log_dir(log_dir)))
     result["RCUTILS_CONSOLE_OUTPUT_FORMAT"] = LOG_FORMAT
     result["RCUTILS_COLORIZED_OUTPUT"] = "0"
     return result
@@ -129,6 +137,7 @@ class HostProcess:
         self.number = number
         self.name = f"host-{number}"
         self.control = socket_dir / f"{self.name}.sock"
+        self.log_dir = log_dir
         self.env = host_environment(env, log_dir)
         self.cmd = host_command(self.control)
         self.output = ProcessOutput(log_dir / f"{self.name}.log")  # lines of no hosted node
@@ -248,6 +257,7 @@ class HostProcess:
         if not robots:
             return  # started when the first robot comes
         self.control.unlink(missing_ok=True)
+        prune_rcl_logs(self.log_dir)
         popen = spawn(self.cmd, self.env)
         with self._lock:
             self.popen = popen

@@ -23,6 +23,37 @@ BACKUPS = 3
 TAIL_LINES = 1000
 LOG_FORMAT = "[{severity}] [{time}] [{name}]: {message}"  # the rcutils default, fixed where fleet splits
 LOG_LINE = re.compile(r"^\[[A-Z]+\] \[[0-9.]+\] \[([^\]]+)\]: ")
+# rcl also writes every process's log to a file of its own, one new file per process start, and
+# never removes one (a node in a crash loop adds one per respawn): the newest few are kept.
+RCL_LOG_FILES_KEPT = 20
+
+
+def rcl_log_dir(log_dir: Path) -> Path:
+    """Where rcl's own log files of the processes logging to `log_dir` go (their ROS_LOG_DIR):
+    beside fleet's logs, not piled up in ~/.ros/log."""
+    return log_dir / "ros"
+
+
+def prune_rcl_logs(log_dir: Path, keep: int = RCL_LOG_FILES_KEPT) -> None:
+    """Remove all but the `keep` most recently written of rcl's log files under `log_dir`; call
+    before a process starts.  A quiet process's file may go while it runs: it keeps writing to
+    it unseen, and its lines are in fleet's own log of it all the same."""
+    try:
+        files = [path for path in rcl_log_dir(log_dir).iterdir() if path.is_file()]
+    except OSError:  # none yet
+        return
+    if len(files) <= keep:
+        return
+    files.sort(key=_written_at, reverse=True)
+    for path in files[keep:]:
+        path.unlink(missing_ok=True)
+
+
+def _written_at(path: Path) -> float:
+    try:
+        return path.stat().st_mtime
+    except OSError:  # gone meanwhile
+        return 0.0
 
 
 def logger_name(fqn: str) -> str:

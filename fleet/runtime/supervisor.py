@@ -31,7 +31,16 @@ from fleet.rules import STABLE_AFTER, backoff_delay
 from fleet.runtime import ament
 from fleet.runtime.isolation import HOSTED, ISOLATIONS, ProcessSpec, composable, plan_processes
 from fleet.runtime.launch_file import LaunchPlan, NodeLaunch, check_launch_file, load_launch_file
-from fleet.runtime.node_log import TAIL_LINES, ProcessOutput, is_launch_logger, launch_line, logger_of, routine
+from fleet.runtime.node_log import (
+    TAIL_LINES,
+    ProcessOutput,
+    is_launch_logger,
+    launch_line,
+    logger_of,
+    prune_rcl_logs,
+    rcl_log_dir,
+    routine,
+)
 from fleet.runtime.processes import group_exists, signal_group, spawn
 
 BACKENDS = ("auto", "embedded", "ros2")
@@ -327,9 +336,7 @@ class LaunchSession:
         env = {name: value for name, value in self.base_env.items() if name not in unset}
         env["AMENT_PREFIX_PATH"] = ament.ament_prefix_path(self.base_env)
         env.setdefault("PYTHONUNBUFFERED", "1")  # node output reaches the log line by line
-        # rcl also writes each node's log to a file of its own: keep those with the session's
-        # logs instead of piling them up in ~/.ros/log.
-        env.setdefault("ROS_LOG_DIR", str(self.log_dir / "ros"))
+        env.setdefault("ROS_LOG_DIR", str(rcl_log_dir(self.log_dir)))
         env.update(extra)
         return env
 
@@ -488,6 +495,7 @@ class LaunchSession:
     def _spawn(self, process: _Supervised) -> None:
         spec = process.spec
         env = self._child_env(spec.env, spec.env_unset)
+        prune_rcl_logs(self.log_dir)
         popen = spawn(spec.cmd, env, cwd=spec.cwd)
         try:
             pidfd: int | None = os.pidfd_open(popen.pid)  # only this thread reaps: it cannot be reaped yet

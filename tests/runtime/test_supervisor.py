@@ -17,6 +17,7 @@ import pytest
 from fleet.errors import FleetError, LaunchFileError
 from fleet.rules import MAX_BACKOFF, MIN_BACKOFF, backoff_delay
 from fleet.runtime import supervisor
+from fleet.runtime.node_log import RCL_LOG_FILES_KEPT, rcl_log_dir
 from fleet.runtime.processes import group_members
 from fleet.runtime.supervisor import LaunchSession
 from fleet.testing.poll import poll
@@ -350,6 +351,27 @@ def test_restarting_a_session_leaves_no_inline_parameter_files_behind(prefix, wr
         assert all(str(path) in session.status()[0].cmd for path in written)
         session.stop()
         assert list(params.iterdir()) == []
+
+
+def test_rcl_log_files_of_past_processes_do_not_pile_up(prefix, write_launch, tmp_path):
+    """rcl writes a log file per process start into the session's ROS_LOG_DIR and never removes
+    one: a node in a crash loop added one per respawn.  Before a process starts, the newest
+    RCL_LOG_FILES_KEPT stay and older ones go."""
+    prefix.add("sleeper", SLEEPER)
+    ros = rcl_log_dir(tmp_path / "logs")
+    ros.mkdir(parents=True)
+    for index in range(RCL_LOG_FILES_KEPT + 10):  # as many earlier processes left
+        old = ros / f"python3_{index}_1700000000000.log"
+        old.write_text("x")
+        os.utime(old, (1_700_000_000 + index, 1_700_000_000 + index))
+    session = session_for(prefix, write_launch, tmp_path, "- node: {pkg: demo, exec: sleeper, name: s}\n")
+    session.start()
+    try:
+        kept = sorted(path.name for path in ros.iterdir())
+        assert len(kept) == RCL_LOG_FILES_KEPT
+        assert kept == sorted(f"python3_{index}_1700000000000.log" for index in range(10, RCL_LOG_FILES_KEPT + 10))
+    finally:
+        session.stop()
 
 
 def test_node_exit_kills_what_it_left_in_its_group(prefix, write_launch, tmp_path):
