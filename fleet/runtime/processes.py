@@ -192,5 +192,6 @@ def stop_on_signals(stop: threading.Event | None = None) -> threading.Event:
     stop = stop or threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
-    faulthandler.register(STACKS_SIGNAL, all_threads=True)
+    with contextlib.suppress(OSError, ValueError):  # a stderr with no file (captured in-process)
+        faulthandler.register(STACKS_SIGNAL, all_threads=True)
     return stop
