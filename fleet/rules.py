@@ -104,6 +104,9 @@ TEMPLATE_SUFFIX = ".launch.yaml.j2"
 # re-reads it as it changes), and its status file beside it (templates/world.launch.yaml.j2).
 WORLD_DESCRIPTION = "world.yaml"
 WORLD_STATUS_FILE = "world.status.json"
+# A bundle's option, False for a real robot's only (`simulated: false`): left out for every other
+# unit, so that their digests stay as they were (fleet.wire.protocol.simulated_option reads it).
+SIMULATED_OPTION = "simulated"
 
 # ---------------------------------------------------------------------------------------------
 # The state directory ($FLEET_STATE_DIR or ~/.local/state/fleet) of the local daemon:

@@ -35,6 +35,7 @@ from fleet.rules import (
     LAUNCH_SUFFIX,
     PARAMS_SUFFIX,
     PYTHON_LAUNCH_SUFFIX,
+    SIMULATED_OPTION,
     WORLD_DESCRIPTION,
     WORLD_TEMPLATE,
     WORLD_UNIT,
@@ -615,7 +616,7 @@ def _robot_bundle(spec: FleetSpec, plan: RobotPlan, sections: dict[DocPath, str]
         entry=f"{plan.name}{LAUNCH_SUFFIX}",
         files=files,
         # The agent reports it with the robot's state: the world does not judge a real robot.
-        options={**isolation_options(spec, plan.isolation), **({} if plan.simulated else {"simulated": False})},
+        options={**isolation_options(spec, plan.isolation), **({} if plan.simulated else {SIMULATED_OPTION: False})},
     )
 
 

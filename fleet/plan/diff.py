@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from fleet.plan.discovery import DiscoveryPlan
 from fleet.plan.parameters import ParameterChange, parameter_changes
 from fleet.plan.view import FleetView, RobotRow
-from fleet.rules import PARAMS_SUFFIX, WORLD_DESCRIPTION
+from fleet.rules import PARAMS_SUFFIX, SIMULATED_OPTION, WORLD_DESCRIPTION
 from fleet.wire import protocol as p
 from fleet.wire.digests import hot_digest
 
@@ -142,7 +142,7 @@ def _changed(bundle: Bundle, running: RobotRow, old: p.BundleMessage | None, cha
 
 
 def _option_change(name: str, old: Mapping[str, Any], new: Mapping[str, Any]) -> str:
-    if name == "simulated":  # only a real robot's options have it: "simulated None -> False" said nothing
+    if name == SIMULATED_OPTION:  # only a real robot's options have it: "simulated None -> False" said nothing
         return "becomes simulated" if p.simulated_option(new) else "becomes real (simulated: false)"
     return f"{name} {old.get(name)!r} -> {new.get(name)!r}"
 

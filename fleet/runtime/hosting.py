@@ -486,8 +486,8 @@ def remove_orphaned_socket_dirs(hosts_root: Path) -> None:
     """Remove the socket directories of the host pools under `hosts_root` whose agent was killed
     (their stop never ran): each pool's directory links to its own."""
     for link in hosts_root.glob(f"*/{SOCKET_DIR_LINK}"):
-        target = Path(os.readlink(link)) if link.is_symlink() else None
-        ours = target is not None and target.parent == Path(tempfile.gettempdir())
-        if ours and target is not None and target.name.startswith(SOCKET_DIR_PREFIX):
-            shutil.rmtree(target, ignore_errors=True)
+        if link.is_symlink():
+            target = Path(os.readlink(link))
+            if target.parent == Path(tempfile.gettempdir()) and target.name.startswith(SOCKET_DIR_PREFIX):
+                shutil.rmtree(target, ignore_errors=True)  # only ever a directory of ours
         link.unlink(missing_ok=True)

@@ -153,13 +153,13 @@ class Agent:
 
     def run(self) -> None:
         """Restore, serve until stop_event is set, then stop every unit."""
+        from fleet.runtime.hosting import remove_orphaned_socket_dirs
+
         self.store.claim()
         # Like any daemon, do not keep the directory we were started from: node processes
         # inherit our working directory, and one that happens to hold a Python project (the
         # fleet checkout itself, say) can change what they import.
         os.chdir(self.store.root)
-        from fleet.runtime.hosting import remove_orphaned_socket_dirs
-
         stop_leftover_processes(self.store.root)
         remove_orphaned_socket_dirs(hosts_root(self.store.root))
         self._restore()

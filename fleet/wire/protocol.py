@@ -38,7 +38,7 @@ from typing import Annotated, Any, Final, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fleet.errors import validation_message
-from fleet.rules import MAX_DOMAIN_ID, ROS_TOKEN_PATTERN, ros_name_problem
+from fleet.rules import MAX_DOMAIN_ID, ROS_TOKEN_PATTERN, SIMULATED_OPTION, ros_name_problem
 from fleet.rules import key_name_problem as key_name_problem
 from fleet.wire.digests import cold_json, digest_of, hot_digest
 from fleet.wire.limits import MAX_BUNDLES as MAX_BUNDLES
@@ -236,9 +236,8 @@ Generation = Annotated[int, Field(ge=0, le=MAX_GENERATION)]
 
 
 def simulated_option(options: Mapping[str, Any]) -> bool:
-    """A bundle's options say `simulated: false` for a real robot only (render leaves the option
-    out for every other unit, so that their digests stay as they were)."""
-    return options.get("simulated") is not False
+    """Whether a bundle's options leave its robot simulated (all but a real robot's do)."""
+    return options.get(SIMULATED_OPTION) is not False
 
 
 class BundleMessage(BaseModel):
